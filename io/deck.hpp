@@ -1,0 +1,163 @@
+// The input deck as the user wrote it, parsed and validated (brief section 5). SI units.
+// Derived quantities (masses, time step, kernel variant) live in the Scene, not here.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "src/common.hpp"
+
+namespace pdsim {
+
+enum class StructureKind { none, sdof, beam };
+enum class Support { clamped, pinned, free };
+enum class ContainerShape { box, cylinder };
+enum class Fill { random, lattice };
+enum class NormalModel { linear, hertz };
+enum class TangentialModel { none, directional, history };
+enum class ExcitationKind { stepped_sine, sine, free_decay, prescribed };
+enum class ExcitationInput { force, base_displacement, base_acceleration };
+enum class CouplingScheme { loose, interleaved, tight };
+enum class Backend { automatic, cpu, cuda };
+enum class IntegratorKind { exact, cvode };
+
+struct BeamSpec {
+  double length = 0;           // m
+  int elements = 0;
+  double young = 0;            // Pa
+  double density = 0;          // kg/m^3
+  double poisson = 0.3;        // for the Timoshenko shear modulus
+  double area = 0;             // m^2, from `section`
+  double inertia = 0;          // m^4, second moment about the bending axis
+  double shear_factor = 0;     // Timoshenko shear coefficient (5/6 rectangle, 0.9 circle)
+  double section_height = 0;   // m, section depth along `direction` (0 = not given)
+  bool timoshenko = false;
+  Support start = Support::clamped;
+  Support end = Support::free;
+};
+
+struct StructureSpec {
+  StructureKind kind = StructureKind::none;
+  // sdof
+  double mass = 0;        // kg
+  double stiffness = 0;   // N/m
+  double damping = 0;     // N s/m (sdof: resolved from damping_ratio when that is given)
+  double damping_ratio = 0;  // sdof: of the bare system; beam: modal damping ratio on every mode
+  std::optional<std::array<double, 2>> rayleigh;  // beam: C = alpha M + beta K
+  Vec3 direction{1, 0, 0};  // unit; sdof: motion direction; beam: bending direction
+  BeamSpec beam;
+  IntegratorKind integrator = IntegratorKind::exact;
+  int modes = 0;  // beam: keep the first N modes (0 = full model)
+};
+
+struct ContainerSpec {
+  ContainerShape shape = ContainerShape::box;
+  Vec3 size;          // box: full edge lengths, m
+  double radius = 0;  // cylinder, m (axis along z)
+  double height = 0;  // cylinder, m
+};
+
+struct ParticleSpec {
+  int count = 0;
+  double diameter = 0;            // m, monodisperse
+  std::vector<double> diameters;  // polydisperse: diameters cycled over particles
+  double diameter_min = 0, diameter_max = 0;  // polydisperse: uniform range
+  double density = 0;             // kg/m^3
+  std::uint64_t seed = 1;
+  Fill fill = Fill::random;
+  bool polydisperse() const { return !diameters.empty() || diameter_max > 0; }
+};
+
+struct DamperSpec {
+  ContainerSpec container;
+  ParticleSpec particles;
+  int attach_node = -1;           // beam: node index (0 = start)
+  std::optional<double> attach_x;  // beam: position along the beam, m
+};
+
+struct ContactSpec {
+  NormalModel model = NormalModel::hertz;
+  TangentialModel tangential = TangentialModel::history;
+  double young = 0;          // Pa
+  double poisson = 0.3;
+  double restitution = 0.6;  // (0, 1]
+  double friction = 0.0;     // Coulomb coefficient
+  double stiffness = 0;      // N/m, linear model normal stiffness (required for `linear`)
+  double rolling_friction = 0;  // dimensionless rolling resistance coefficient (0 = off)
+};
+
+struct SettleSpec {
+  int min_periods = 10;
+  int max_periods = 200;
+  double tolerance = 1e-3;  // relative change of the first harmonic between periods
+  int average_periods = 4;  // periods averaged for the reported harmonics / power
+  int samples_per_period = 128;
+};
+
+struct MotionSpec {
+  Vec3 axis{1, 0, 0};    // unit
+  double amplitude = 0;  // m
+  double frequency = 0;  // Hz; for a sweep, the first of ExcitationSpec::frequencies
+};
+
+struct ExcitationSpec {
+  ExcitationKind kind = ExcitationKind::sine;
+  ExcitationInput input = ExcitationInput::force;
+  double amplitude = 0;              // N, m or m/s^2 according to `input`
+  std::vector<double> frequencies;   // Hz, in the order they are run (prescribed: never empty)
+  SettleSpec settle;
+  double frequency = 0;              // Hz, `sine`
+  double duration = 0;               // s, `sine`, `free_decay`, `prescribed`
+  double initial_displacement = 0;   // m, `free_decay`
+  MotionSpec motion;                 // `prescribed`
+};
+
+struct CouplingSpec {
+  CouplingScheme scheme = CouplingScheme::loose;
+  int every = 1;             // DEM steps per coupling exchange
+  double tolerance = 1e-6;   // tight: relative change of the interface force
+  int max_iterations = 10;   // tight
+};
+
+struct SolverSpec {
+  double dt = 0;            // s; 0 = auto
+  double dt_safety = 0.0;   // 0 = default for the contact model
+  Backend backend = Backend::automatic;
+  bool allow_unstable = false;
+  int threads = 0;          // 0 = OpenMP default
+};
+
+struct OutputSpec {
+  std::string file;     // HDF5 path, relative to the working directory
+  double every = 0;     // s between time-series samples; 0 = automatic
+  bool energy = false;  // write /energy
+};
+
+struct Deck {
+  std::string path;  // as given on the command line
+  std::string text;  // the whole deck, stored as provenance
+  std::string title;
+  StructureSpec structure;
+  std::vector<DamperSpec> dampers;
+  ContactSpec contact;
+  std::optional<Vec3> gravity;  // absent = no gravity
+  ExcitationSpec excitation;
+  CouplingSpec coupling;
+  SolverSpec solver;
+  OutputSpec output;
+  // Where each key given in the deck stands, by dotted name ("damper[0].particles.count").
+  std::map<std::string, SourcePos> positions;
+
+  // Position of a key (or of its closest enclosing table) for error messages.
+  SourcePos where(const std::string& key) const;
+};
+
+// Parses and validates a deck; throws InputError naming file:line:column, key and expectation.
+Deck load_deck(const std::string& path);
+Deck parse_deck(const std::string& text, const std::string& path);
+
+}  // namespace pdsim

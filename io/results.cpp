@@ -1,0 +1,359 @@
+// HDF5 writer/reader for Results (brief section 6), on the HDF5 1.10 C API.
+#include "io/results.hpp"
+
+#include <hdf5.h>
+
+#include <cstring>
+#include <filesystem>
+#include <stdexcept>
+#include <utility>
+
+namespace pdsim {
+namespace {
+
+static_assert(sizeof(int) == 4, "FrfTable int columns are stored as 32-bit integers");
+
+// The innermost message of the HDF5 error stack ("unable to open file: ... errno = 2, ...")
+// is the only place that says why a call failed; read it before the next call clears it.
+std::string hdf5_reason() {
+  std::string reason;
+  H5Ewalk2(
+      H5E_DEFAULT, H5E_WALK_DOWNWARD,
+      [](unsigned, const H5E_error2_t* error, void* out) -> herr_t {
+        if (error->desc != nullptr && error->desc[0] != '\0') {
+          *static_cast<std::string*>(out) = error->desc;
+        }
+        return 0;
+      },
+      &reason);
+  return reason;
+}
+
+[[noreturn]] void fail(const std::string& file, const std::string& what) {
+  const std::string reason = hdf5_reason();
+  throw std::runtime_error(file + ": HDF5: cannot " + what + (reason.empty() ? "" : ": " + reason));
+}
+
+template <typename T>
+T check(T status, const std::string& file, const std::string& what) {
+  if (status < 0) fail(file, what);
+  return status;
+}
+
+// Owns one HDF5 identifier and closes it with the matching H5*close.
+class Handle {
+ public:
+  Handle(hid_t id, herr_t (*closer)(hid_t), const std::string& file, const std::string& what)
+      : id_(check(id, file, what)), close_(closer) {}
+  Handle(Handle&& other) noexcept
+      : id_(std::exchange(other.id_, H5I_INVALID_HID)), close_(other.close_) {}
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  Handle& operator=(Handle&&) = delete;
+  ~Handle() {
+    if (id_ >= 0) close_(id_);
+  }
+  hid_t get() const { return id_; }
+  // Closing a file flushes it; that failure must be reported, not swallowed by a destructor.
+  void close(const std::string& file) {
+    const hid_t id = std::exchange(id_, H5I_INVALID_HID);
+    check(close_(id), file, "close");
+  }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+Handle variable_string_type(const std::string& file) {
+  Handle type(H5Tcopy(H5T_C_S1), H5Tclose, file, "copy the string type");
+  check(H5Tset_size(type.get(), H5T_VARIABLE), file, "make a variable-length string type");
+  check(H5Tset_cset(type.get(), H5T_CSET_UTF8), file, "set the UTF-8 character set");
+  return type;
+}
+
+// ---- writing ----
+
+// A scalar attribute; `value` points to one element of `memory_type`.
+void write_attribute(hid_t group, const std::string& name, hid_t file_type, hid_t memory_type,
+                     const void* value, const std::string& file) {
+  const std::string what = "write attribute /meta/" + name;
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose, file, what);
+  Handle attribute(
+      H5Acreate2(group, name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+      file, what);
+  check(H5Awrite(attribute.get(), memory_type, value), file, what);
+}
+
+void write_column(hid_t group, const std::string& group_path, const std::string& name,
+                  hid_t file_type, hid_t memory_type, const void* data, std::size_t size,
+                  const std::string& file) {
+  const std::string what = "write dataset " + group_path + "/" + name;
+  const hsize_t dims[1] = {static_cast<hsize_t>(size)};
+  Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose, file, what);
+  Handle dataset(H5Dcreate2(group, name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT,
+                            H5P_DEFAULT),
+                 H5Dclose, file, what);
+  if (size > 0) {
+    check(H5Dwrite(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), file, what);
+  }
+}
+
+class GroupWriter {
+ public:
+  GroupWriter(hid_t parent, const std::string& path, const std::string& file)
+      : path_(path),
+        file_(file),
+        group_(H5Gcreate2(parent, path.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
+               file, "create group " + path) {}
+  void column(const std::string& name, const std::vector<double>& values) {
+    write_column(group_.get(), path_, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values.data(),
+                 values.size(), file_);
+  }
+  void column(const std::string& name, const std::vector<int>& values) {
+    write_column(group_.get(), path_, name, H5T_STD_I32LE, H5T_NATIVE_INT, values.data(),
+                 values.size(), file_);
+  }
+  hid_t get() const { return group_.get(); }
+
+ private:
+  std::string path_, file_;
+  Handle group_;
+};
+
+void write_meta(hid_t file_id, const Results& results, bool complete, const std::string& file) {
+  GroupWriter meta(file_id, "/meta", file);
+  // Variable-length strings: the deck text may exceed the 64 KiB limit of a fixed-length
+  // attribute stored in the object header.
+  const Handle text_type = variable_string_type(file);
+  for (const auto& [name, text] : results.meta_text) {
+    const char* chars = text.c_str();
+    write_attribute(meta.get(), name, text_type.get(), text_type.get(), &chars, file);
+  }
+  for (const auto& [name, number] : results.meta_numbers) {
+    write_attribute(meta.get(), name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &number, file);
+  }
+  const int complete_flag = complete ? 1 : 0;
+  write_attribute(meta.get(), "complete", H5T_STD_I32LE, H5T_NATIVE_INT, &complete_flag, file);
+}
+
+void write_file(const std::string& file, const Results& r, bool complete) {
+  Handle h5file(H5Fcreate(file.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose, file,
+                "create the file");
+  write_meta(h5file.get(), r, complete, file);
+  if (!r.timeseries.time.empty()) {
+    GroupWriter g(h5file.get(), "/timeseries", file);
+    g.column("time", r.timeseries.time);
+    g.column("displacement", r.timeseries.displacement);
+    g.column("velocity", r.timeseries.velocity);
+    g.column("damper_force", r.timeseries.damper_force);
+  }
+  if (!r.frf.frequency.empty()) {
+    GroupWriter g(h5file.get(), "/frf", file);
+    g.column("frequency", r.frf.frequency);
+    g.column("amplitude", r.frf.amplitude);
+    g.column("phase", r.frf.phase);
+    g.column("rms", r.frf.rms);
+    g.column("peak", r.frf.peak);
+    g.column("periods", r.frf.periods);
+    g.column("converged", r.frf.converged);
+    g.column("dissipated_energy", r.frf.dissipated_energy);
+    g.column("dissipated_normal", r.frf.dissipated_normal);
+    g.column("dissipated_tangential", r.frf.dissipated_tangential);
+  }
+  if (!r.prescribed.frequency.empty()) {
+    GroupWriter g(h5file.get(), "/prescribed", file);
+    g.column("frequency", r.prescribed.frequency);
+    g.column("dissipated_power", r.prescribed.dissipated_power);
+    g.column("force_amplitude", r.prescribed.force_amplitude);
+    g.column("force_phase", r.prescribed.force_phase);
+  }
+  if (r.energy) {
+    GroupWriter g(h5file.get(), "/energy", file);
+    g.column("time", r.energy->time);
+    g.column("kinetic", r.energy->kinetic);
+    g.column("elastic", r.energy->elastic);
+    g.column("dissipated_normal", r.energy->dissipated_normal);
+    g.column("dissipated_tangential", r.energy->dissipated_tangential);
+    g.column("work_in", r.energy->work_in);
+  }
+  if (!r.checkpoint.empty()) {
+    GroupWriter g(h5file.get(), "/checkpoint", file);
+    for (const auto& [name, values] : r.checkpoint) g.column(name, values);
+  }
+  h5file.close(file);
+}
+
+// ---- reading ----
+
+bool has_link(hid_t location, const std::string& name, const std::string& file) {
+  return check(H5Lexists(location, name.c_str(), H5P_DEFAULT), file, "look up " + name) > 0;
+}
+
+// Reads a 1-D dataset; a missing one stays empty (files from older writers, optional columns).
+template <typename T>
+void read_column(hid_t group, const std::string& group_path, const std::string& name,
+                 hid_t memory_type, std::vector<T>& out, const std::string& file) {
+  if (!has_link(group, name, file)) return;
+  const std::string what = "read dataset " + group_path + "/" + name;
+  Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose, file, what);
+  Handle space(H5Dget_space(dataset.get()), H5Sclose, file, what);
+  if (check(H5Sget_simple_extent_ndims(space.get()), file, what) != 1) {
+    throw std::runtime_error(file + ": " + group_path + "/" + name + " is not a 1-D dataset");
+  }
+  out.resize(
+      static_cast<std::size_t>(check(H5Sget_simple_extent_npoints(space.get()), file, what)));
+  if (!out.empty()) {
+    check(H5Dread(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()), file,
+          what);
+  }
+}
+
+class GroupReader {
+ public:
+  GroupReader(hid_t group, const std::string& path, const std::string& file)
+      : path_(path), file_(file), group_(group) {}
+  void column(const std::string& name, std::vector<double>& out) const {
+    read_column(group_, path_, name, H5T_NATIVE_DOUBLE, out, file_);
+  }
+  void column(const std::string& name, std::vector<int>& out) const {
+    read_column(group_, path_, name, H5T_NATIVE_INT, out, file_);
+  }
+
+ private:
+  std::string path_, file_;
+  hid_t group_;
+};
+
+// Calls `read(group_id, reader)` when the group exists; a missing group leaves the fields empty.
+template <typename Read>
+bool read_group(hid_t file_id, const std::string& path, const std::string& file, Read read) {
+  if (!has_link(file_id, path, file)) return false;
+  Handle group(H5Gopen2(file_id, path.c_str(), H5P_DEFAULT), H5Gclose, file, "open " + path);
+  read(group.get(), GroupReader(group.get(), path, file));
+  return true;
+}
+
+std::vector<std::string> member_names(hid_t group, bool attributes, const std::string& file,
+                                      const std::string& what) {
+  std::vector<std::string> names;
+  hsize_t index = 0;
+  if (attributes) {
+    check(H5Aiterate2(
+              group, H5_INDEX_NAME, H5_ITER_INC, &index,
+              [](hid_t, const char* name, const H5A_info_t*, void* out) -> herr_t {
+                static_cast<std::vector<std::string>*>(out)->emplace_back(name);
+                return 0;
+              },
+              &names),
+          file, what);
+  } else {
+    check(H5Literate(
+              group, H5_INDEX_NAME, H5_ITER_INC, &index,
+              [](hid_t, const char* name, const H5L_info_t*, void* out) -> herr_t {
+                static_cast<std::vector<std::string>*>(out)->emplace_back(name);
+                return 0;
+              },
+              &names),
+          file, what);
+  }
+  return names;
+}
+
+void read_meta(hid_t meta, Results& results, const std::string& file) {
+  for (const std::string& name : member_names(meta, true, file, "list /meta attributes")) {
+    if (name == "complete") continue;  // a property of the file, not of Results
+    const std::string what = "read attribute /meta/" + name;
+    Handle attribute(H5Aopen(meta, name.c_str(), H5P_DEFAULT), H5Aclose, file, what);
+    Handle file_type(H5Aget_type(attribute.get()), H5Tclose, file, what);
+    const H5T_class_t type_class = H5Tget_class(file_type.get());
+    if (type_class == H5T_STRING) {
+      Handle memory_type(H5Tget_native_type(file_type.get(), H5T_DIR_ASCEND), H5Tclose, file, what);
+      if (check(H5Tis_variable_str(file_type.get()), file, what) > 0) {
+        char* chars = nullptr;
+        check(H5Aread(attribute.get(), memory_type.get(), &chars), file, what);
+        results.meta_text[name] = chars != nullptr ? chars : "";
+        H5free_memory(chars);
+      } else {
+        std::string chars(H5Tget_size(file_type.get()), '\0');
+        check(H5Aread(attribute.get(), memory_type.get(), chars.data()), file, what);
+        results.meta_text[name] = chars.substr(0, std::strlen(chars.c_str()));
+      }
+    } else if (type_class == H5T_FLOAT || type_class == H5T_INTEGER) {
+      double number = 0;
+      check(H5Aread(attribute.get(), H5T_NATIVE_DOUBLE, &number), file, what);
+      results.meta_numbers[name] = number;
+    } else {
+      throw std::runtime_error(file + ": /meta/" + name + " is neither a string nor a number");
+    }
+  }
+}
+
+Results read_file(const std::string& file) {
+  Results r;
+  Handle h5file(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose, file,
+                "open the file");
+  const hid_t f = h5file.get();
+  read_group(f, "/meta", file, [&](hid_t meta, const GroupReader&) { read_meta(meta, r, file); });
+  read_group(f, "/timeseries", file, [&](hid_t, const GroupReader& g) {
+    g.column("time", r.timeseries.time);
+    g.column("displacement", r.timeseries.displacement);
+    g.column("velocity", r.timeseries.velocity);
+    g.column("damper_force", r.timeseries.damper_force);
+  });
+  read_group(f, "/frf", file, [&](hid_t, const GroupReader& g) {
+    g.column("frequency", r.frf.frequency);
+    g.column("amplitude", r.frf.amplitude);
+    g.column("phase", r.frf.phase);
+    g.column("rms", r.frf.rms);
+    g.column("peak", r.frf.peak);
+    g.column("periods", r.frf.periods);
+    g.column("converged", r.frf.converged);
+    g.column("dissipated_energy", r.frf.dissipated_energy);
+    g.column("dissipated_normal", r.frf.dissipated_normal);
+    g.column("dissipated_tangential", r.frf.dissipated_tangential);
+  });
+  read_group(f, "/prescribed", file, [&](hid_t, const GroupReader& g) {
+    g.column("frequency", r.prescribed.frequency);
+    g.column("dissipated_power", r.prescribed.dissipated_power);
+    g.column("force_amplitude", r.prescribed.force_amplitude);
+    g.column("force_phase", r.prescribed.force_phase);
+  });
+  read_group(f, "/energy", file, [&](hid_t, const GroupReader& g) {
+    EnergySeries& e = r.energy.emplace();
+    g.column("time", e.time);
+    g.column("kinetic", e.kinetic);
+    g.column("elastic", e.elastic);
+    g.column("dissipated_normal", e.dissipated_normal);
+    g.column("dissipated_tangential", e.dissipated_tangential);
+    g.column("work_in", e.work_in);
+  });
+  read_group(f, "/checkpoint", file, [&](hid_t group, const GroupReader& g) {
+    for (const std::string& name : member_names(group, false, file, "list /checkpoint")) {
+      g.column(name, r.checkpoint[name]);
+    }
+  });
+  h5file.close(file);
+  return r;
+}
+
+}  // namespace
+
+void write_results(const std::string& path, const Results& results, bool complete) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const std::string partial = path + ".partial";
+  write_file(partial, results, complete);
+  if (!complete) return;
+  std::error_code error;
+  std::filesystem::rename(partial, path, error);
+  if (error) {
+    throw std::runtime_error("cannot rename " + partial + " to " + path + ": " + error.message());
+  }
+}
+
+Results read_results(const std::string& path) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  return read_file(path);
+}
+
+}  // namespace pdsim

@@ -1,0 +1,410 @@
+// OpenMP backend: launches the shared per-particle functions over particle blocks. Totals are
+// reduced per fixed block of particles and then summed in block order, so results are bitwise
+// identical for any thread count.
+#include <omp.h>
+
+#include <algorithm>
+#include <cstring>
+#include <numeric>
+
+#include "kernels/neighbours.hpp"
+#include "kernels/variant_dispatch.hpp"
+
+namespace pdsim {
+namespace {
+
+constexpr int kBlock = 256;  // particles per reduction block (independent of thread count)
+
+struct StateBuffer {
+  std::vector<double> x, y, z, vx, vy, vz, wx, wy, wz;
+  std::vector<double>* all[9] = {&x, &y, &z, &vx, &vy, &vz, &wx, &wy, &wz};
+  void resize(std::size_t n) {
+    for (auto* a : all) a->assign(n, 0.0);
+  }
+  ParticleArrays view() {
+    return {x.data(),  y.data(),  z.data(),  vx.data(), vy.data(),
+            vz.data(), wx.data(), wy.data(), wz.data()};
+  }
+};
+
+struct HistoryBuffer {
+  std::vector<double> neighbour, wall;
+  std::vector<std::uint64_t> neighbour_mask;
+  std::vector<std::uint8_t> wall_mask;
+};
+
+template <class T>
+void permute(std::vector<T>& a, const std::vector<std::int32_t>& order, std::size_t stride = 1) {
+  if (a.empty()) return;
+  std::vector<T> b(a.size());
+  for (std::size_t i = 0; i < order.size(); ++i)
+    std::copy_n(a.begin() + static_cast<std::ptrdiff_t>(order[i] * stride), stride,
+                b.begin() + static_cast<std::ptrdiff_t>(i * stride));
+  a.swap(b);
+}
+
+// Upper bound on how many particles can lie within reach + skin of one particle, from the
+// densest sphere packing (0.7405) of the smallest spheres in a ball of radius reach + r_min.
+int neighbour_bound(double r_min, double r_max, double skin) {
+  const double reach = 2 * r_max + skin + r_min;
+  return static_cast<int>(std::ceil(0.7405 * std::pow(reach / r_min, 3)));
+}
+
+template <class V>
+class CpuEngine final : public DemEngine {
+ public:
+  explicit CpuEngine(const EngineConfig& c) : config_(c) {
+    count_ = static_cast<int>(c.particles.size());
+    threads_ = c.threads > 0 ? c.threads : omp_get_max_threads();
+    const auto [rmin_it, rmax_it] = std::minmax_element(c.radius.begin(), c.radius.end());
+    r_min_ = *rmin_it;
+    r_max_ = *rmax_it;
+    skin_ = c.skin > 0 ? c.skin : 0.3 * r_min_;
+    max_neighbours_ = std::max(1, std::min(neighbour_bound(r_min_, r_max_, skin_), 64));
+    const std::size_t n = static_cast<std::size_t>(count_);
+    for (auto& s : state_) s.resize(n);
+    radius_ = c.radius;
+    inv_mass_.resize(n);
+    inv_inertia_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double r = radius_[i];
+      const double mass = c.density * 4.0 / 3.0 * kPi * r * r * r;
+      inv_mass_[i] = 1.0 / mass;
+      inv_inertia_[i] = 1.0 / (0.4 * mass * r * r);
+    }
+    id_.resize(n);
+    std::iota(id_.begin(), id_.end(), 0);
+    set_particles(c.particles);
+  }
+
+  const StepTotals& compute(const ContainerKinematics& container, double dt) override {
+    if (needs_rebuild_) rebuild(container);
+    ParticleStepArgs a = args(container, dt);
+    const int blocks = (count_ + kBlock - 1) / kBlock;
+    block_totals_.assign(static_cast<std::size_t>(blocks), StepTotals{});
+#pragma omp parallel for schedule(static) num_threads(threads_) if (blocks > 1)
+    for (int b = 0; b < blocks; ++b) {
+      StepTotals sum;
+      const int end = std::min(count_, (b + 1) * kBlock);
+      for (int i = b * kBlock; i < end; ++i) accumulate(sum, step_particle<V>(i, a));
+      block_totals_[static_cast<std::size_t>(b)] = sum;
+    }
+    totals_ = StepTotals{};
+    for (const auto& t : block_totals_) accumulate(totals_, t);
+    return totals_;
+  }
+
+  void accept() override {
+    current_ ^= 1;
+    const double half_skin = 0.5 * skin_;
+    if (totals_.drift_sq > half_skin * half_skin) needs_rebuild_ = true;
+  }
+
+  int count() const override {
+    return count_;
+  }
+  std::string variant() const override {
+    return variant_string<V>();
+  }
+  std::string backend() const override {
+    return "cpu (" + std::to_string(threads_) + " thread" + (threads_ > 1 ? "s)" : ")");
+  }
+  int threads() const override {
+    return threads_;
+  }
+
+  std::vector<ParticleState> particles() const override {
+    const StateBuffer& s = state_[current_];
+    std::vector<ParticleState> out(static_cast<std::size_t>(count_));
+    for (std::size_t i = 0; i < out.size(); ++i)
+      out[static_cast<std::size_t>(id_[i])] = {
+          {s.x[i], s.y[i], s.z[i]}, {s.vx[i], s.vy[i], s.vz[i]}, {s.wx[i], s.wy[i], s.wz[i]}};
+    return out;
+  }
+
+  void set_particles(const std::vector<ParticleState>& p) override {
+    StateBuffer& s = state_[current_];
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const ParticleState& q = p[static_cast<std::size_t>(id_[i])];
+      s.x[i] = q.position.x, s.y[i] = q.position.y, s.z[i] = q.position.z;
+      s.vx[i] = q.velocity.x, s.vy[i] = q.velocity.y, s.vz[i] = q.velocity.z;
+      s.wx[i] = q.spin.x, s.wy[i] = q.spin.y, s.wz[i] = q.spin.z;
+    }
+    const std::size_t n = static_cast<std::size_t>(count_);
+    const std::size_t slots = n * static_cast<std::size_t>(max_neighbours_);
+    for (auto& h : history_) {
+      h.neighbour.assign(V::Tangential::kHistory ? 3 * slots : 0, 0.0);
+      h.neighbour_mask.assign(n, 0);
+      h.wall.assign(V::Tangential::kHistory ? 3 * kWallSlots * n : 0, 0.0);
+      h.wall_mask.assign(n, 0);
+    }
+    neighbours_.assign(slots, -1);
+    partner_id_.assign(slots, -1);
+    neighbour_count_.assign(n, 0);
+    needs_rebuild_ = true;
+  }
+
+  StateArrays save() const override {
+    StateArrays out;
+    const StateBuffer& s = state_[current_];
+    const char* names[9] = {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"};
+    for (int k = 0; k < 9; ++k) out[names[k]] = *s.all[k];
+    out["id"].assign(id_.begin(), id_.end());
+    out["radius"] = radius_;
+    const HistoryBuffer& h = history_[current_];
+    out["history"] = h.neighbour;
+    out["wall_history"] = h.wall;
+    out["wall_mask"].assign(h.wall_mask.begin(), h.wall_mask.end());
+    auto& mask_lo = out["mask_lo"];
+    auto& mask_hi = out["mask_hi"];
+    for (std::uint64_t m : h.neighbour_mask) {
+      mask_lo.push_back(static_cast<double>(m & 0xffffffffu));
+      mask_hi.push_back(static_cast<double>(m >> 32));
+    }
+    out["neighbours"].assign(neighbours_.begin(), neighbours_.end());
+    out["partner_id"].assign(partner_id_.begin(), partner_id_.end());
+    out["neighbour_count"].assign(neighbour_count_.begin(), neighbour_count_.end());
+    out["x_build"] = x_build_;
+    out["y_build"] = y_build_;
+    out["z_build"] = z_build_;
+    out["grid"] = {grid_.origin.x,
+                   grid_.origin.y,
+                   grid_.origin.z,
+                   grid_.cell_size,
+                   static_cast<double>(grid_.nx),
+                   static_cast<double>(grid_.ny),
+                   static_cast<double>(grid_.nz),
+                   needs_rebuild_ ? 1.0 : 0.0,
+                   static_cast<double>(max_neighbours_)};
+    return out;
+  }
+
+  void restore(const StateArrays& in) override {
+    auto get = [&](const char* key) -> const std::vector<double>& {
+      const auto it = in.find(key);
+      if (it == in.end()) throw SimulationError(std::string("checkpoint lacks DEM array ") + key);
+      return it->second;
+    };
+    const std::vector<double>& grid = get("grid");
+    max_neighbours_ = static_cast<int>(grid.at(8));
+    set_particles(config_.particles);  // sizes every array for max_neighbours_
+    StateBuffer& s = state_[current_];
+    const char* names[9] = {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"};
+    for (int k = 0; k < 9; ++k) *s.all[k] = get(names[k]);
+    auto to_int = [](const std::vector<double>& a, auto& out) { out.assign(a.begin(), a.end()); };
+    to_int(get("id"), id_);
+    radius_ = get("radius");
+    for (std::size_t i = 0; i < radius_.size(); ++i) {
+      const double mass = config_.density * 4.0 / 3.0 * kPi * std::pow(radius_[i], 3);
+      inv_mass_[i] = 1.0 / mass;
+      inv_inertia_[i] = 1.0 / (0.4 * mass * radius_[i] * radius_[i]);
+    }
+    HistoryBuffer& h = history_[current_];
+    h.neighbour = get("history");
+    h.wall = get("wall_history");
+    to_int(get("wall_mask"), h.wall_mask);
+    const auto& lo = get("mask_lo");
+    const auto& hi = get("mask_hi");
+    for (std::size_t i = 0; i < lo.size(); ++i)
+      h.neighbour_mask[i] = static_cast<std::uint64_t>(lo[i]) | static_cast<std::uint64_t>(hi[i])
+                                                                    << 32;
+    to_int(get("neighbours"), neighbours_);
+    to_int(get("partner_id"), partner_id_);
+    to_int(get("neighbour_count"), neighbour_count_);
+    x_build_ = get("x_build");
+    y_build_ = get("y_build");
+    z_build_ = get("z_build");
+    grid_ = {{grid[0], grid[1], grid[2]},
+             grid[3],
+             static_cast<int>(grid[4]),
+             static_cast<int>(grid[5]),
+             static_cast<int>(grid[6])};
+    needs_rebuild_ = grid[7] != 0.0;
+  }
+
+  std::size_t bytes_per_particle() const override {
+    std::size_t bytes = 2 * 9 * sizeof(double) + 3 * sizeof(double)  // state, build positions
+                        + sizeof(std::int32_t)                       // id
+                        + static_cast<std::size_t>(max_neighbours_) * 2 * sizeof(std::int32_t) +
+                        sizeof(std::int32_t);
+    if (V::kPolydisperse) bytes += 3 * sizeof(double);
+    if (V::Tangential::kHistory)
+      bytes += 2 * (3 * sizeof(double) * (static_cast<std::size_t>(max_neighbours_) + kWallSlots) +
+                    sizeof(std::uint64_t) + 1);
+    return bytes;
+  }
+
+ private:
+  ParticleStepArgs args(const ContainerKinematics& container, double dt) {
+    StateBuffer& in = state_[current_];
+    StateBuffer& out = state_[current_ ^ 1];
+    HistoryBuffer& hin = history_[current_];
+    HistoryBuffer& hout = history_[current_ ^ 1];
+    ParticleStepArgs a{};
+    a.count = count_;
+    a.dt = dt;
+    a.in = in.view();
+    a.out = out.view();
+    a.radius = radius_.data();
+    a.inv_mass = inv_mass_.data();
+    a.inv_inertia = inv_inertia_.data();
+    a.mono_radius = radius_[0];
+    a.mono_inv_mass = inv_mass_[0];
+    a.mono_inv_inertia = inv_inertia_[0];
+    a.neighbours = neighbours_.data();
+    a.neighbour_count = neighbour_count_.data();
+    a.max_neighbours = max_neighbours_;
+    a.history = {hin.neighbour.data(),       hout.neighbour.data(), hin.neighbour_mask.data(),
+                 hout.neighbour_mask.data(), hin.wall.data(),       hout.wall.data(),
+                 hin.wall_mask.data(),       hout.wall_mask.data()};
+    a.x_build = x_build_.data();
+    a.y_build = y_build_.data();
+    a.z_build = z_build_.data();
+    a.contact = config_.contact;
+    a.geometry = config_.geometry;
+    a.container = container;
+    a.gravity = config_.gravity.value_or(Vec3{});
+    return a;
+  }
+
+  // Sorts the particles by grid cell and rebuilds the neighbour lists, carrying the history.
+  void rebuild(const ContainerKinematics& container) {
+    const std::size_t n = static_cast<std::size_t>(count_);
+    StateBuffer& s = state_[current_];
+    const double cell = 2 * r_max_ + skin_;
+    const Vec3 h = config_.geometry.half_size;
+    const Vec3 margin{cell, cell, cell};
+    grid_.origin = container.position - h - margin;
+    grid_.cell_size = cell;
+    grid_.nx = static_cast<int>(std::ceil(2 * (h.x + cell) / cell));
+    grid_.ny = static_cast<int>(std::ceil(2 * (h.y + cell) / cell));
+    grid_.nz = static_cast<int>(std::ceil(2 * (h.z + cell) / cell));
+    const int cells = grid_.nx * grid_.ny * grid_.nz;
+
+    // Counting sort by cell (stable, so the order is reproducible).
+    std::vector<std::int32_t> cell_of_particle(n);
+    std::vector<std::int32_t> cell_start(static_cast<std::size_t>(cells) + 1, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      cell_of_particle[i] = cell_of(grid_, {s.x[i], s.y[i], s.z[i]});
+      ++cell_start[static_cast<std::size_t>(cell_of_particle[i]) + 1];
+    }
+    std::partial_sum(cell_start.begin(), cell_start.end(), cell_start.begin());
+    std::vector<std::int32_t> order(n);
+    {
+      std::vector<std::int32_t> fill(cell_start.begin(), cell_start.end() - 1);
+      for (std::size_t i = 0; i < n; ++i)
+        order[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of_particle[i])]++)] =
+            static_cast<std::int32_t>(i);
+    }
+    for (auto* a : s.all) permute(*a, order);
+    permute(id_, order);
+    permute(radius_, order);
+    permute(inv_mass_, order);
+    permute(inv_inertia_, order);
+    HistoryBuffer& hin = history_[current_];
+    HistoryBuffer& scratch = history_[current_ ^ 1];
+    permute(hin.wall, order, 3 * kWallSlots);
+    permute(hin.wall_mask, order);
+
+    NeighbourBuildArgs b{};
+    b.count = count_;
+    b.grid = grid_;
+    b.x = s.x.data();
+    b.y = s.y.data();
+    b.z = s.z.data();
+    b.radius = V::kPolydisperse ? radius_.data() : nullptr;
+    b.mono_radius = radius_[0];
+    b.skin = skin_;
+    b.cell_start = cell_start.data();
+    b.cell_end = cell_start.data() + 1;
+    b.id = id_.data();
+    std::vector<std::int32_t> old_partner = partner_id_, old_count = neighbour_count_;
+    if (V::Tangential::kHistory) {
+      b.old_index = order.data();
+      b.old_partner_id = old_partner.data();
+      b.old_neighbour_count = old_count.data();
+      b.old_mask = hin.neighbour_mask.data();
+      b.old_history = hin.neighbour.data();
+      b.new_mask = scratch.neighbour_mask.data();
+      b.new_history = scratch.neighbour.data();
+    }
+    b.max_neighbours = max_neighbours_;
+    b.neighbours = neighbours_.data();
+    b.neighbour_count = neighbour_count_.data();
+    b.partner_id = partner_id_.data();
+    int overflow = 0;
+#pragma omp parallel for schedule(static) num_threads(threads_) reduction(| : overflow)
+    for (int i = 0; i < count_; ++i) overflow |= build_neighbours_of(i, b) ? 0 : 1;
+    if (overflow)
+      throw SimulationError("neighbour list overflow (" + std::to_string(max_neighbours_) +
+                            " slots): particles are packed beyond the densest packing; the "
+                            "simulation has most likely blown up");
+    if (V::Tangential::kHistory) {
+      std::swap(hin.neighbour, scratch.neighbour);
+      std::swap(hin.neighbour_mask, scratch.neighbour_mask);
+    }
+    x_build_ = s.x;
+    y_build_ = s.y;
+    z_build_ = s.z;
+    needs_rebuild_ = false;
+  }
+
+  EngineConfig config_;
+  int count_ = 0, threads_ = 1, max_neighbours_ = 1, current_ = 0;
+  double r_min_ = 0, r_max_ = 0, skin_ = 0;
+  StateBuffer state_[2];
+  HistoryBuffer history_[2];
+  std::vector<double> radius_, inv_mass_, inv_inertia_, x_build_, y_build_, z_build_;
+  std::vector<std::int32_t> id_, neighbours_, partner_id_, neighbour_count_;
+  Grid grid_{};
+  bool needs_rebuild_ = true;
+  std::vector<StepTotals> block_totals_;
+  StepTotals totals_;
+};
+
+struct MakeCpu {
+  const EngineConfig& config;
+  template <class V>
+  std::unique_ptr<DemEngine> operator()() const {
+    return std::make_unique<CpuEngine<V>>(config);
+  }
+};
+
+struct NameOf {
+  template <class V>
+  std::string operator()() const {
+    return variant_string<V>();
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<DemEngine> make_cpu_engine(const EngineConfig& config) {
+  return dispatch_variant(config, MakeCpu{config});
+}
+
+std::string variant_name(const EngineConfig& config) {
+  return dispatch_variant(config, NameOf{});
+}
+
+#ifndef PDSIM_HAVE_CUDA
+bool cuda_device_available(std::string* description) {
+  if (description) *description = "this pdsim was built without CUDA";
+  return false;
+}
+#endif
+
+std::unique_ptr<DemEngine> make_engine(const EngineConfig& config) {
+  if (config.backend == Backend::cuda) {
+#ifdef PDSIM_HAVE_CUDA
+    if (!cuda_device_available())
+      throw InputError("solver.backend = \"cuda\" but no CUDA device is available");
+    return make_cuda_engine(config);
+#else
+    throw InputError("solver.backend = \"cuda\" but this pdsim was built without CUDA");
+#endif
+  }
+  return make_cpu_engine(config);
+}
+
+}  // namespace pdsim

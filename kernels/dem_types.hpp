@@ -1,0 +1,49 @@
+// Plain data shared by the DEM kernels on host and device: material constants of a scene,
+// container geometry and kinematics, and structure-of-arrays views of the particle state.
+#pragma once
+
+#include <cstdint>
+
+#include "src/common.hpp"
+
+namespace pdsim {
+
+// Contact constants derived once per scene (see src/scene.cpp for the formulas' sources).
+struct ContactParams {
+  double linear_stiffness = 0;  // N/m, linear law
+  double damping_factor = 0;    // linear: c = damping_factor sqrt(m* k); hertz: -2 sqrt(5/6) beta
+  double hertz_modulus_pp = 0;  // E* particle-particle, Pa
+  double hertz_modulus_pw = 0;  // E* particle-wall, Pa
+  double shear_modulus_pp = 0;  // G* particle-particle, Pa (Mindlin)
+  double shear_modulus_pw = 0;  // G* particle-wall, Pa
+  double tangential_ratio = 2.0 / 7.0;  // linear law + history: kt = ratio * kn
+  double friction = 0;                  // Coulomb coefficient
+  double rolling_friction = 0;          // rolling resistance coefficient (torque = mu_r R* |Fn|)
+  double slip_velocity = 1e-5;          // m/s, regularises the direction of directional Coulomb
+};
+
+enum class WallShape : int { box = 0, cylinder = 1 };
+
+struct ContainerGeometry {
+  Vec3 half_size;     // box: half edge lengths; cylinder: (radius, radius, half height)
+  double radius = 0;  // cylinder radius
+};
+
+// Rigid container motion at the start of a step (translation only; see DESIGN in README).
+struct ContainerKinematics {
+  Vec3 position;  // centre, m
+  Vec3 velocity;  // m/s
+};
+
+enum StepFlag : int { kNonFinite = 1, kEscaped = 2, kNeighbourOverflow = 4 };
+
+// Particle state, one array per component (structure of arrays).
+struct ParticleArrays {
+  double *x, *y, *z;
+  double *vx, *vy, *vz;
+  double *wx, *wy, *wz;
+};
+
+constexpr int kWallSlots = 6;  // box: -x,+x,-y,+y,-z,+z; cylinder: 0 side, 4 -z, 5 +z
+
+}  // namespace pdsim

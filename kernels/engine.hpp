@@ -1,0 +1,71 @@
+// Host API of the DEM engine: one particle system in one rigid container. The backend (OpenMP
+// or CUDA) and the kernel variant are chosen once, when the engine is made.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "io/deck.hpp"
+#include "kernels/particle_step.hpp"
+
+namespace pdsim {
+
+struct ParticleState {
+  Vec3 position, velocity, spin;  // m, m/s, rad/s
+};
+
+struct EngineConfig {
+  Backend backend = Backend::cpu;
+  int threads = 0;  // OpenMP threads, 0 = default
+  WallShape shape = WallShape::box;
+  ContainerGeometry geometry;
+  std::vector<double> radius;  // m, per particle
+  double density = 0;          // kg/m^3
+  NormalModel normal = NormalModel::hertz;
+  TangentialModel tangential = TangentialModel::history;
+  bool rolling = false;
+  std::optional<Vec3> gravity;
+  ContactParams contact;
+  double dt = 0;                         // s
+  double skin = 0;                       // m, Verlet skin (0 = 0.15 x smallest diameter)
+  std::vector<ParticleState> particles;  // initial state, world frame
+};
+
+using StepTotals = ParticleContribution;
+using StateArrays = std::map<std::string, std::vector<double>>;
+
+class DemEngine {
+ public:
+  virtual ~DemEngine() = default;
+  // Computes the step t_n -> t_n + dt with the container at `container` (its state at t_n)
+  // into the back buffer and returns the totals (the force on the container is the one at
+  // t_n). Calling it again before accept() recomputes the same step (tight coupling).
+  virtual const StepTotals& compute(const ContainerKinematics& container, double dt) = 0;
+  virtual void accept() = 0;  // the computed step becomes the current state
+  virtual int count() const = 0;
+  virtual std::string variant() const = 0;  // e.g. "hertz/history/gravity/box"
+  virtual std::string backend() const = 0;  // "cpu (2 threads)" or "cuda (H100)"
+  virtual int threads() const = 0;
+  // Particles of the current state, in their original order.
+  virtual std::vector<ParticleState> particles() const = 0;
+  virtual void set_particles(const std::vector<ParticleState>& state) = 0;  // clears history
+  // Exact save/restore of everything the next steps depend on (checkpoints).
+  virtual StateArrays save() const = 0;
+  virtual void restore(const StateArrays& state) = 0;
+  virtual std::size_t bytes_per_particle() const = 0;
+};
+
+// Throws InputError if the backend is unavailable (e.g. "cuda" without a GPU).
+std::unique_ptr<DemEngine> make_engine(const EngineConfig& config);
+
+// Name of the kernel variant a config selects, e.g. "hertz/history/gravity/mono/box".
+std::string variant_name(const EngineConfig& config);
+
+// Backend factories (kernels/cpu, kernels/cuda).
+std::unique_ptr<DemEngine> make_cpu_engine(const EngineConfig& config);
+std::unique_ptr<DemEngine> make_cuda_engine(const EngineConfig& config);
+bool cuda_device_available(std::string* description = nullptr);
+
+}  // namespace pdsim

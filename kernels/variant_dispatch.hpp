@@ -1,0 +1,72 @@
+// Picks the Variant<...> instantiation a scene needs at start, so that the hot loop holds no
+// branch on disabled physics. `make.template operator()<V>()` is called with the chosen type.
+#pragma once
+
+#include "kernels/engine.hpp"
+
+namespace pdsim {
+
+inline bool is_polydisperse(const EngineConfig& c) {
+  for (double r : c.radius)
+    if (r != c.radius.front()) return true;
+  return false;
+}
+
+namespace dispatch_detail {
+
+template <class N, class T, bool R, bool G, bool P, class Make>
+auto by_shape(const EngineConfig& c, Make&& make) {
+  if (c.shape == WallShape::box)
+    return make.template operator()<Variant<N, T, R, G, P, WallShape::box>>();
+  return make.template operator()<Variant<N, T, R, G, P, WallShape::cylinder>>();
+}
+
+template <class N, class T, bool R, bool G, class Make>
+auto by_radii(const EngineConfig& c, Make&& make) {
+  if (is_polydisperse(c)) return by_shape<N, T, R, G, true>(c, make);
+  return by_shape<N, T, R, G, false>(c, make);
+}
+
+template <class N, class T, bool R, class Make>
+auto by_gravity(const EngineConfig& c, Make&& make) {
+  if (c.gravity) return by_radii<N, T, R, true>(c, make);
+  return by_radii<N, T, R, false>(c, make);
+}
+
+template <class N, class T, class Make>
+auto by_rolling(const EngineConfig& c, Make&& make) {
+  if (c.rolling) return by_gravity<N, T, true>(c, make);
+  return by_gravity<N, T, false>(c, make);
+}
+
+template <class N, class Make>
+auto by_tangential(const EngineConfig& c, Make&& make) {
+  switch (c.tangential) {
+    case TangentialModel::none:
+      return by_rolling<N, NoTangential>(c, make);
+    case TangentialModel::directional:
+      return by_rolling<N, DirectionalCoulomb>(c, make);
+    default:
+      return by_rolling<N, MindlinHistory>(c, make);
+  }
+}
+
+}  // namespace dispatch_detail
+
+template <class Make>
+auto dispatch_variant(const EngineConfig& c, Make&& make) {
+  if (c.normal == NormalModel::linear) return dispatch_detail::by_tangential<LinearNormal>(c, make);
+  return dispatch_detail::by_tangential<HertzNormal>(c, make);
+}
+
+template <class V>
+std::string variant_string() {
+  std::string s = std::string(V::Normal::name) + "/" + V::Tangential::name;
+  if (V::kRolling) s += "/rolling";
+  if (V::kGravity) s += "/gravity";
+  s += V::kPolydisperse ? "/poly" : "/mono";
+  s += V::kShape == WallShape::box ? "/box" : "/cylinder";
+  return s;
+}
+
+}  // namespace pdsim

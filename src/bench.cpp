@@ -1,0 +1,141 @@
+#include "src/bench.hpp"
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+
+#include "src/scene.hpp"
+
+namespace pdsim {
+namespace {
+
+// The benchmark scene (issue 5): steel spheres d = 5 mm, Hertz + Mindlin history, gravity,
+// dt = 1e-6 s, lattice start, box shaken 0.004 sin(2 pi 20 t) along x.
+DamperSpec shaken_box(int particles) {
+  DamperSpec d;
+  d.container.shape = ContainerShape::box;
+  if (particles <= 250)
+    d.container.size = {0.04, 0.04, 0.04};
+  else if (particles <= 8000)
+    d.container.size = {0.11, 0.11, 0.2};
+  else
+    d.container.size = {0.26, 0.26, 0.4 * particles / 100000.0 + 0.02};
+  d.particles.count = particles;
+  d.particles.diameter = 0.005;
+  d.particles.density = 7800;
+  d.particles.fill = Fill::lattice;
+  return d;
+}
+
+struct Effect {
+  const char* name;
+  NormalModel normal;
+  TangentialModel tangential;
+  bool gravity, rolling, polydisperse;
+};
+
+double time_engine(EngineConfig config, long steps, long long* particle_steps) {
+  const auto start = std::chrono::steady_clock::now();
+  auto engine = make_engine(config);
+  const double omega = 2 * kPi * 20.0, amplitude = 0.004;
+  for (long n = 0; n < steps; ++n) {
+    const double t = static_cast<double>(n) * config.dt;
+    const ContainerKinematics k{{amplitude * std::sin(omega * t), 0, 0},
+                                {amplitude * omega * std::cos(omega * t), 0, 0}};
+    const StepTotals& totals = engine->compute(k, config.dt);
+    if (totals.flags) throw SimulationError("bench scene blew up");
+    engine->accept();
+  }
+  *particle_steps = static_cast<long long>(steps) * engine->count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+EngineConfig bench_config(int particles, int threads, Backend backend) {
+  const DamperSpec d = shaken_box(particles);
+  EngineConfig c;
+  c.backend = backend;
+  c.threads = threads;
+  c.geometry.half_size = 0.5 * d.container.size;
+  c.radius.assign(static_cast<std::size_t>(particles), 0.0025);
+  c.density = 7800;
+  c.gravity = Vec3{0, 0, -9.81};
+  c.dt = 1e-6;
+  const double young = 2e11, poisson = 0.3;
+  c.contact.damping_factor = hertz_damping_factor(0.5);
+  c.contact.hertz_modulus_pp = c.contact.hertz_modulus_pw = young / (2 * (1 - poisson * poisson));
+  c.contact.shear_modulus_pp = c.contact.shear_modulus_pw =
+      young / (2 * (1 + poisson)) / (2 * (2 - poisson));
+  c.contact.linear_stiffness = 1e6;
+  c.contact.friction = 0.3;
+  c.contact.rolling_friction = 0.01;
+  for (const Vec3& p : fill_particles(d, c.radius, SourcePos{"bench", 0, 0}))
+    c.particles.push_back({p, {}, {}});
+  return c;
+}
+
+}  // namespace
+
+void add_bench_options(CLI::App& app, BenchOptions& o) {
+  app.add_option("--particles", o.particles, "particle counts (e.g. 196,8000,100000)")
+      ->delimiter(',');
+  app.add_option("--threads", o.threads, "thread counts to compare (e.g. 1,2)")->delimiter(',');
+  app.add_option("--steps", o.steps, "steps per scene (default: about 2e7 particle-steps)");
+  app.add_flag("--effects", o.effects, "time each optional effect against the full model");
+  app.add_option("--backend", o.backend, "cpu or cuda")->check(CLI::IsMember({"cpu", "cuda"}));
+}
+
+int run_bench(const BenchOptions& o) {
+  const Backend backend = o.backend == "cuda" ? Backend::cuda : Backend::cpu;
+  std::printf(
+      "# shaken steel-sphere box: d = 5 mm, hertz/history, gravity, dt = 1e-6 s, "
+      "lattice start, x = 0.004 sin(2 pi 20 t); set-up included\n");
+  std::printf("%-10s %-8s %-9s %-10s %-14s %-16s %s\n", "particles", "threads", "steps", "wall_s",
+              "psteps_per_s", "bytes/particle", "variant");
+  for (int n : o.particles) {
+    const long steps = o.steps > 0 ? o.steps : std::max(200L, 20000000L / n);
+    for (int t : o.threads) {
+      EngineConfig c = bench_config(n, t, backend);
+      long long ps = 0;
+      const double wall = time_engine(c, steps, &ps);
+      const auto probe = make_engine(c);
+      std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %s\n", n, t, steps, wall,
+                  static_cast<double>(ps) / wall, probe->bytes_per_particle(),
+                  probe->variant().c_str());
+      std::fflush(stdout);
+    }
+  }
+  if (!o.effects) return 0;
+  // Cost of each optional effect, measured side by side in this run (one thread, first count).
+  const Effect effects[] = {
+      {"full: hertz+history+gravity", NormalModel::hertz, TangentialModel::history, true, false,
+       false},
+      {"no gravity", NormalModel::hertz, TangentialModel::history, false, false, false},
+      {"no friction", NormalModel::hertz, TangentialModel::none, true, false, false},
+      {"directional Coulomb", NormalModel::hertz, TangentialModel::directional, true, false, false},
+      {"+ rolling resistance", NormalModel::hertz, TangentialModel::history, true, true, false},
+      {"linear normal law", NormalModel::linear, TangentialModel::history, true, false, false},
+      {"polydisperse radii path", NormalModel::hertz, TangentialModel::history, true, false, true},
+  };
+  const int n = o.particles.front();
+  const long steps = o.steps > 0 ? o.steps : std::max(200L, 20000000L / n);
+  std::printf("\n# effect cost: %d particles, 1 thread, %ld steps\n", n, steps);
+  std::printf("%-30s %-14s %-10s %s\n", "effect", "psteps_per_s", "relative", "variant");
+  double reference = 0;
+  for (const Effect& e : effects) {
+    EngineConfig c = bench_config(n, 1, backend);
+    c.normal = e.normal;
+    c.tangential = e.tangential;
+    if (!e.gravity) c.gravity.reset();
+    c.rolling = e.rolling;
+    if (e.polydisperse) c.radius.back() *= 0.999;  // one smaller sphere selects the radii path
+    long long ps = 0;
+    const double wall = time_engine(c, steps, &ps);
+    const double r = static_cast<double>(ps) / wall;
+    if (reference == 0) reference = r;
+    std::printf("%-30s %-14.4g %-10.3f %s\n", e.name, r, r / reference, variant_name(c).c_str());
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+}  // namespace pdsim

@@ -1,0 +1,25 @@
+// `pdsim bench`: particle-steps per second of the shaken steel-sphere box (the scene the
+// LIGGGHTS comparison uses, validation/liggghts/) and the cost of each optional effect.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace CLI {
+class App;
+}
+
+namespace pdsim {
+
+struct BenchOptions {
+  std::vector<int> particles{196, 8000};
+  std::vector<int> threads{1, 2};
+  long steps = 0;        // 0 = about 2e7 particle-steps per scene
+  bool effects = false;  // also time each optional effect against the full model
+  std::string backend = "cpu";
+};
+
+void add_bench_options(CLI::App& app, BenchOptions& options);
+int run_bench(const BenchOptions& options);
+
+}  // namespace pdsim

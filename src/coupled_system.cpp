@@ -1,0 +1,272 @@
+#include "src/coupled_system.hpp"
+
+#include <cmath>
+
+namespace pdsim {
+
+double Drive::force(double t) const {
+  return input == ExcitationInput::force ? amplitude * std::sin(omega * t) : 0.0;
+}
+
+// Base motion is the periodic solution of y'' = a: for a displacement amplitude Y,
+// y = Y sin wt; for an acceleration amplitude A, y = -(A / w^2) sin wt.
+double Drive::base_displacement(double t) const {
+  if (input == ExcitationInput::base_displacement) return amplitude * std::sin(omega * t);
+  if (input == ExcitationInput::base_acceleration)
+    return -amplitude / (omega * omega) * std::sin(omega * t);
+  return 0.0;
+}
+
+double Drive::base_velocity(double t) const {
+  if (input == ExcitationInput::base_displacement) return amplitude * omega * std::cos(omega * t);
+  if (input == ExcitationInput::base_acceleration) return -amplitude / omega * std::cos(omega * t);
+  return 0.0;
+}
+
+double Drive::base_acceleration(double t) const {
+  if (input == ExcitationInput::base_displacement)
+    return -amplitude * omega * omega * std::sin(omega * t);
+  if (input == ExcitationInput::base_acceleration) return amplitude * std::sin(omega * t);
+  return 0.0;
+}
+
+CoupledSystem::CoupledSystem(const Deck& deck, const Scene& scene)
+    : scene_(scene),
+      coupling_(deck.coupling),
+      integrator_kind_(deck.structure.integrator),
+      direction_(deck.structure.direction),
+      every_(deck.coupling.every) {
+  if (deck.structure.kind != StructureKind::none) {
+    structure_ = build_structure(deck);
+  } else {
+    prescribed_ = deck.excitation.motion;
+    every_ = 1;
+  }
+  for (const DamperScene& d : scene.dampers) engines_.push_back(make_engine(d.engine));
+  pending_force_.assign(engines_.size(), 0.0);
+}
+
+int CoupledSystem::particle_count() const {
+  int n = 0;
+  for (const auto& e : engines_) n += e->count();
+  return n;
+}
+
+void CoupledSystem::configure(double dt, const Drive& drive) {
+  dt_ = dt;
+  drive_ = drive;
+  if (structure_.size() > 0) {
+    Eigen::VectorXd q = Eigen::VectorXd::Zero(structure_.size()), v = q;
+    if (integrator_) q = integrator_->q, v = integrator_->v;
+    integrator_ = make_integrator(structure_, integrator_kind_, dt * every_);
+    integrator_->q = q;
+    integrator_->v = v;
+  }
+  pending_ = false;  // a tight step is re-primed with the new step size
+}
+
+void CoupledSystem::set_initial_displacement(double x0) {
+  // Static deflection shape under the excitation force pattern, scaled to x0 at the response.
+  const Eigen::VectorXd shape = structure_.stiffness.ldlt().solve(structure_.force_shape);
+  integrator_->q = x0 / response(shape) * shape;
+  integrator_->v.setZero();
+}
+
+double CoupledSystem::response(const Eigen::VectorXd& q) const {
+  return structure_.response * q;
+}
+
+Eigen::VectorXd CoupledSystem::external_load(double t) const {
+  if (drive_.input == ExcitationInput::force) return drive_.force(t) * structure_.force_shape;
+  return -drive_.base_acceleration(t) * (structure_.mass * structure_.base_influence);
+}
+
+ContainerKinematics CoupledSystem::container(int damper, double t, double u, double u_dot) const {
+  (void)damper;
+  (void)t;
+  return {u * direction_, u_dot * direction_};
+}
+
+double CoupledSystem::structure_energy() const {
+  if (!integrator_) return 0.0;
+  const Eigen::VectorXd& q = integrator_->q;
+  const Eigen::VectorXd& v = integrator_->v;
+  return 0.5 * v.dot(structure_.mass * v) + 0.5 * q.dot(structure_.stiffness * q);
+}
+
+// Runs one DEM step of every damper with the container at displacement u_k(t) + lead * u_dot_k,
+// accepting it unless `accept` is false; returns the power the containers put into the particles.
+double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>& force_along) {
+  double power = 0;
+  last_.dissipated_normal = last_.dissipated_tangential = last_.particle_kinetic = 0;
+  for (std::size_t k = 0; k < engines_.size(); ++k) {
+    const Eigen::RowVectorXd row = structure_.attachment_translation.row(static_cast<int>(k));
+    const double u = drive_.base_displacement(t) + row * integrator_->q;
+    const double u_dot = drive_.base_velocity(t) + row * integrator_->v;
+    const ContainerKinematics kin = container(static_cast<int>(k), t, u + lead * u_dot, u_dot);
+    const StepTotals& totals = engines_[k]->compute(kin, dt_);
+    force_along[k] = dot(totals.wall_force, direction_);
+    power -= dot(totals.wall_force, kin.velocity);
+    last_.dissipated_normal += totals.dissipated_normal;
+    last_.dissipated_tangential += totals.dissipated_tangential;
+    last_.particle_kinetic += totals.kinetic;
+    particle_steps_ += engines_[k]->count();
+  }
+  return power;
+}
+
+void CoupledSystem::advance() {
+  if (prescribed_)
+    step_prescribed();
+  else if (coupling_.scheme == CouplingScheme::tight && !engines_.empty())
+    step_tight();
+  else
+    step_explicit(coupling_.scheme == CouplingScheme::interleaved);
+}
+
+void CoupledSystem::step_prescribed() {
+  const MotionSpec& m = *prescribed_;
+  const double u = m.amplitude * std::sin(drive_.omega * time_);
+  const double u_dot = m.amplitude * drive_.omega * std::cos(drive_.omega * time_);
+  last_ = StepRecord{};
+  last_.time = time_;
+  last_.displacement = u;
+  last_.velocity = u_dot;
+  for (auto& e : engines_) {
+    const ContainerKinematics kin{u * m.axis, u_dot * m.axis};
+    const StepTotals& totals = e->compute(kin, dt_);
+    e->accept();
+    last_.damper_force += dot(totals.wall_force, m.axis);
+    last_.power_in -= dot(totals.wall_force, kin.velocity);
+    last_.dissipated_normal += totals.dissipated_normal;
+    last_.dissipated_tangential += totals.dissipated_tangential;
+    last_.particle_kinetic += totals.kinetic;
+    particle_steps_ += e->count();
+  }
+  time_ += dt_;
+}
+
+void CoupledSystem::step_explicit(bool impulse) {
+  const double t0 = time_;
+  const int n = structure_.size();
+  last_.time = t0;
+  last_.displacement = response(integrator_->q);
+  last_.velocity = response(integrator_->v);
+  // The DEM sub-steps see the container extrapolated linearly over the coupling interval.
+  std::vector<double> force_sum(engines_.size(), 0.0), force(engines_.size(), 0.0);
+  double power = 0, dissipated_n = 0, dissipated_t = 0;
+  for (int s = 0; s < every_; ++s) {
+    power += compute_dampers(t0 + s * dt_, s * dt_, force);
+    for (auto& e : engines_) e->accept();
+    for (std::size_t k = 0; k < force.size(); ++k) force_sum[k] += force[k];
+    dissipated_n += last_.dissipated_normal;
+    dissipated_t += last_.dissipated_tangential;
+  }
+  const double h = every_ * dt_;
+  Eigen::VectorXd damper_load = Eigen::VectorXd::Zero(n);
+  double total_force = 0;
+  for (std::size_t k = 0; k < force_sum.size(); ++k) {
+    const double mean = force_sum[k] / every_;
+    damper_load += mean * structure_.attachment_translation.row(static_cast<int>(k)).transpose();
+    total_force += mean;
+  }
+  const Eigen::VectorXd q_old = integrator_->q;
+  const Eigen::VectorXd external = external_load(t0 + 0.5 * h);
+  if (impulse) {
+    integrator_->kick(h * damper_load);
+    integrator_->step(h, external);
+  } else {
+    integrator_->step(h, external + damper_load);
+  }
+  last_.damper_force = total_force;
+  last_.power_in = engines_.empty() ? 0.0 : power / every_;
+  last_.dissipated_normal = dissipated_n;
+  last_.dissipated_tangential = dissipated_t;
+  last_.work_external = external.dot(integrator_->q - q_old);
+  time_ = t0 + h;
+}
+
+void CoupledSystem::step_tight() {
+  std::vector<double> force(engines_.size(), 0.0);
+  if (!pending_) {
+    // Prime: the DEM step from the current particle state with the container at t_n.
+    last_.time = time_;
+    const double power = compute_dampers(time_, 0.0, force);
+    pending_force_ = force;
+    pending_record_ = last_;
+    pending_record_.power_in = power;
+    pending_ = true;
+  }
+  const double t0 = time_;
+  StepRecord record = pending_record_;
+  record.time = t0;
+  record.displacement = response(integrator_->q);
+  record.velocity = response(integrator_->v);
+  record.damper_force = 0;
+  for (double f : pending_force_) record.damper_force += f;
+  for (auto& e : engines_) e->accept();  // particles t_n -> t_{n+1}
+
+  const Eigen::VectorXd q0 = integrator_->q, v0 = integrator_->v;
+  const Eigen::VectorXd external = external_load(t0 + 0.5 * dt_);
+  std::vector<double> guess = pending_force_;
+  double power = 0;
+  for (int iteration = 0; iteration < coupling_.max_iterations; ++iteration) {
+    integrator_->q = q0;
+    integrator_->v = v0;
+    Eigen::VectorXd load = external;
+    for (std::size_t k = 0; k < guess.size(); ++k)
+      load += 0.5 * (pending_force_[k] + guess[k]) *
+              structure_.attachment_translation.row(static_cast<int>(k)).transpose();
+    integrator_->step(dt_, load);
+    power = compute_dampers(t0 + dt_, 0.0, force);
+    double change = 0, scale = 1e-12;
+    for (std::size_t k = 0; k < force.size(); ++k) {
+      change = std::max(change, std::fabs(force[k] - guess[k]));
+      scale = std::max(scale, std::max(std::fabs(force[k]), std::fabs(pending_force_[k])));
+    }
+    guess = force;
+    if (change <= coupling_.tolerance * scale) break;
+  }
+  record.work_external = external.dot(integrator_->q - q0);
+  StepRecord computed = last_;  // tallies of the step just computed, reported once accepted
+  computed.power_in = power;
+  last_ = record;
+  pending_force_ = force;
+  pending_record_ = computed;
+  time_ = t0 + dt_;
+}
+
+StateArrays CoupledSystem::save() const {
+  StateArrays out;
+  for (std::size_t k = 0; k < engines_.size(); ++k)
+    for (auto& [name, values] : engines_[k]->save())
+      out["damper" + std::to_string(k) + "." + name] = values;
+  if (integrator_) {
+    out["structure.q"].assign(integrator_->q.data(), integrator_->q.data() + integrator_->q.size());
+    out["structure.v"].assign(integrator_->v.data(), integrator_->v.data() + integrator_->v.size());
+  }
+  out["time"] = {time_};
+  out["particle_steps"] = {static_cast<double>(particle_steps_)};
+  return out;
+}
+
+void CoupledSystem::restore(const StateArrays& state) {
+  for (std::size_t k = 0; k < engines_.size(); ++k) {
+    const std::string prefix = "damper" + std::to_string(k) + ".";
+    StateArrays mine;
+    for (const auto& [name, values] : state)
+      if (name.rfind(prefix, 0) == 0) mine[name.substr(prefix.size())] = values;
+    engines_[k]->restore(mine);
+  }
+  if (integrator_) {
+    const auto& q = state.at("structure.q");
+    const auto& v = state.at("structure.v");
+    integrator_->q = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<int>(q.size()));
+    integrator_->v = Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<int>(v.size()));
+  }
+  time_ = state.at("time").at(0);
+  particle_steps_ = static_cast<long long>(state.at("particle_steps").at(0));
+  pending_ = false;
+}
+
+}  // namespace pdsim

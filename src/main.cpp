@@ -1,0 +1,84 @@
+// pdsim command line: run, check, modes, bench. User errors exit 1 with the message;
+// simulation failures exit 2; an interrupted run exits 130.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+
+#include "pdsim_version.hpp"
+#include "src/bench.hpp"
+#include "src/run.hpp"
+#include "structure/structure.hpp"
+
+namespace {
+
+std::optional<pdsim::Backend> parse_backend(const std::string& name) {
+  if (name.empty()) return std::nullopt;
+  if (name == "cpu") return pdsim::Backend::cpu;
+  if (name == "cuda") return pdsim::Backend::cuda;
+  if (name == "auto") return pdsim::Backend::automatic;
+  throw pdsim::InputError("--backend: expected cpu, cuda or auto, got '" + name + "'");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"pdsim: particle damper simulator (DEM particles coupled to a structure)"};
+  app.set_version_flag("--version", std::string("pdsim ") + PDSIM_VERSION + " (" + PDSIM_GIT + ")");
+  app.require_subcommand(1);
+
+  std::string deck_path, output, backend;
+  pdsim::RunOptions options;
+  auto* run = app.add_subcommand("run", "run a deck and write its HDF5 results");
+  run->add_option("deck", deck_path, "input deck (TOML)")->required();
+  run->add_option("-o,--output", output, "output file (default: output.file of the deck)");
+  run->add_option("--threads", options.threads, "CPU threads (default: all)")
+      ->check(CLI::PositiveNumber);
+  run->add_option("--backend", backend, "cpu, cuda or auto (default: the deck's solver.backend)");
+  run->add_flag("--resume", options.resume, "continue an interrupted run from its checkpoint");
+  run->add_flag("--force", options.force, "overwrite an existing output file");
+  run->add_flag("--quiet", options.quiet, "no progress lines");
+
+  auto* check = app.add_subcommand("check", "validate a deck and print derived quantities");
+  check->add_option("deck", deck_path, "input deck (TOML)")->required();
+
+  auto* modes = app.add_subcommand("modes", "print the structure's natural frequencies");
+  modes->add_option("deck", deck_path, "input deck (TOML)")->required();
+  int mode_count = 10;
+  modes->add_option("-n,--count", mode_count, "how many modes")->check(CLI::PositiveNumber);
+
+  pdsim::BenchOptions bench_options;
+  auto* bench = app.add_subcommand("bench", "measure particle-steps per second");
+  add_bench_options(*bench, bench_options);
+
+  CLI11_PARSE(app, argc, argv);
+  try {
+    if (*bench) return pdsim::run_bench(bench_options);
+    const pdsim::Deck deck = pdsim::load_deck(deck_path);
+    if (*modes) {
+      if (deck.structure.kind == pdsim::StructureKind::none)
+        throw pdsim::InputError(deck.path + ": the deck has no [structure]");
+      const auto f = pdsim::natural_frequencies(pdsim::build_structure(deck));
+      std::cout << pdsim::format_modes(f, mode_count);
+      return 0;
+    }
+    options.output = output;
+    options.backend = parse_backend(backend);
+    const pdsim::Scene scene = pdsim::build_scene(deck, options.threads, options.backend);
+    if (*check) {
+      std::cout << pdsim::check_report(deck, scene) << "deck OK\n";
+      return 0;
+    }
+    const pdsim::RunReport report = pdsim::run_deck(deck, options);
+    std::cout << "wrote " << report.output << "\n" << report.summary << "\n";
+    return 0;
+  } catch (const pdsim::InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  } catch (const pdsim::SimulationError& e) {
+    std::cerr << "simulation failed: " << e.what() << "\n";
+    return std::string(e.what()).rfind("interrupted", 0) == 0 ? 130 : 2;
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 2;
+  }
+}

@@ -1,0 +1,41 @@
+// Running a deck: excitation drivers (stepped sine, sine, free decay, prescribed motion),
+// checkpoints after every finished frequency, provenance, and the text of `pdsim check`.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "io/deck.hpp"
+#include "io/results.hpp"
+#include "src/scene.hpp"
+
+namespace pdsim {
+
+struct RunOptions {
+  std::string output;  // overrides output.file
+  bool resume = false;
+  bool force = false;
+  bool quiet = false;  // no progress lines
+  int threads = 0;
+  std::optional<Backend> backend;
+};
+
+struct RunReport {
+  std::string output;   // path of the finished file
+  std::string summary;  // one line for the terminal
+};
+
+// Output path: --output, else output.file, else the deck's name with ".h5".
+std::string output_path(const Deck& deck, const RunOptions& options);
+
+// Runs the deck to completion and writes its results. Throws InputError for user errors
+// (existing output without --force, resume mismatch) and SimulationError for blow-ups.
+RunReport run_deck(const Deck& deck, const RunOptions& options);
+
+// Runs the deck and returns the results without writing a file (tests, benchmarks).
+Results simulate(const Deck& deck, const Scene& scene, bool quiet = true);
+
+// The derived quantities `pdsim check` prints.
+std::string check_report(const Deck& deck, const Scene& scene);
+
+}  // namespace pdsim

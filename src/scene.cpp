@@ -1,0 +1,292 @@
+#include "src/scene.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <random>
+#include <sstream>
+
+namespace pdsim {
+
+double linear_damping_factor(double restitution) {
+  const double l = std::log(restitution);
+  return 2.0 * std::fabs(l) / std::sqrt(kPi * kPi + l * l);
+}
+
+double hertz_damping_factor(double restitution) {
+  const double l = std::log(restitution);
+  const double beta = l / std::sqrt(l * l + kPi * kPi);
+  return -2.0 * std::sqrt(5.0 / 6.0) * beta;
+}
+
+double linear_contact_time(double stiffness, double mass_eff, double restitution) {
+  const double c = linear_damping_factor(restitution) * std::sqrt(mass_eff * stiffness);
+  const double half = c / (2 * mass_eff);
+  return kPi / std::sqrt(stiffness / mass_eff - half * half);
+}
+
+double rayleigh_time(double radius, double density, double young, double poisson) {
+  const double shear = young / (2 * (1 + poisson));
+  return kPi * radius * std::sqrt(density / shear) / (0.1631 * poisson + 0.8766);
+}
+
+namespace {
+
+// Uniform double in [0, 1) from a 64-bit generator, identical on every platform.
+double uniform(std::mt19937_64& gen) {
+  return static_cast<double>(gen() >> 11) * 0x1.0p-53;
+}
+
+std::vector<double> particle_radii(const ParticleSpec& p) {
+  std::vector<double> r(static_cast<std::size_t>(p.count));
+  std::mt19937_64 gen(p.seed ^ 0x9e3779b97f4a7c15ULL);
+  for (std::size_t i = 0; i < r.size(); ++i) {
+    if (!p.diameters.empty())
+      r[i] = 0.5 * p.diameters[i % p.diameters.size()];
+    else if (p.diameter_max > 0)
+      r[i] = 0.5 * (p.diameter_min + (p.diameter_max - p.diameter_min) * uniform(gen));
+    else
+      r[i] = 0.5 * p.diameter;
+  }
+  return r;
+}
+
+ContainerGeometry geometry_of(const ContainerSpec& c) {
+  ContainerGeometry g;
+  if (c.shape == ContainerShape::box) {
+    g.half_size = 0.5 * c.size;
+  } else {
+    g.half_size = {c.radius, c.radius, 0.5 * c.height};
+    g.radius = c.radius;
+  }
+  return g;
+}
+
+bool inside(const ContainerSpec& c, Vec3 p, double r) {
+  const ContainerGeometry g = geometry_of(c);
+  if (std::fabs(p.z) > g.half_size.z - r) return false;
+  if (c.shape == ContainerShape::box)
+    return std::fabs(p.x) <= g.half_size.x - r && std::fabs(p.y) <= g.half_size.y - r;
+  return std::hypot(p.x, p.y) <= g.radius - r;
+}
+
+double container_volume(const ContainerSpec& c) {
+  return c.shape == ContainerShape::box ? c.size.x * c.size.y * c.size.z
+                                        : kPi * c.radius * c.radius * c.height;
+}
+
+std::string format(double v) {
+  std::ostringstream s;
+  s.precision(4);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<double>& radius,
+                                 const SourcePos& where) {
+  const ContainerSpec& c = damper.container;
+  const ContainerGeometry g = geometry_of(c);
+  const std::size_t n = radius.size();
+  const double r_max = *std::max_element(radius.begin(), radius.end());
+  std::vector<Vec3> centres;
+  centres.reserve(n);
+  if (damper.particles.fill == Fill::lattice) {
+    // Simple cubic lattice, spacing 1.02 d, first centre 0.51 d from each lower wall (brief 5).
+    const double d = 2 * r_max, spacing = 1.02 * d;
+    const Vec3 start = -1.0 * g.half_size + Vec3{0.51 * d, 0.51 * d, 0.51 * d};
+    for (int k = 0; centres.size() < n; ++k) {
+      const double z = start.z + k * spacing;
+      if (z > g.half_size.z - r_max) break;
+      for (int j = 0; centres.size() < n; ++j) {
+        const double y = start.y + j * spacing;
+        if (y > g.half_size.y - r_max) break;
+        for (int i = 0; centres.size() < n; ++i) {
+          const double x = start.x + i * spacing;
+          if (x > g.half_size.x - r_max) break;
+          if (inside(c, {x, y, z}, r_max)) centres.push_back({x, y, z});
+        }
+      }
+    }
+    if (centres.size() < n)
+      throw InputError(where, "particles.count",
+                       "a lattice of spacing 1.02 d holds only " + std::to_string(centres.size()) +
+                           " particles in this container, " + std::to_string(n) + " requested");
+    return centres;
+  }
+  // Random sequential addition with a cell list for the overlap test.
+  std::mt19937_64 gen(damper.particles.seed);
+  const double cell = 2 * r_max;
+  const int nx = std::max(1, static_cast<int>(std::ceil(2 * g.half_size.x / cell)));
+  const int ny = std::max(1, static_cast<int>(std::ceil(2 * g.half_size.y / cell)));
+  const int nz = std::max(1, static_cast<int>(std::ceil(2 * g.half_size.z / cell)));
+  std::vector<std::vector<int>> cells(static_cast<std::size_t>(nx) * ny * nz);
+  auto index = [&](int i, int j, int k) { return (static_cast<std::size_t>(k) * ny + j) * nx + i; };
+  auto cell_coord = [&](double v, double half, int count) {
+    return std::clamp(static_cast<int>((v + half) / cell), 0, count - 1);
+  };
+  const long max_attempts = 20000 + 2000L * static_cast<long>(n);
+  long attempts = 0;
+  for (std::size_t p = 0; p < n; ++p) {
+    const double r = radius[p];
+    for (;;) {
+      if (++attempts > max_attempts) {
+        double volume = 0;
+        for (double ri : radius) volume += 4.0 / 3.0 * kPi * ri * ri * ri;
+        throw InputError(where, "particles",
+                         "random fill placed only " + std::to_string(p) + " of " +
+                             std::to_string(n) + " particles (fill fraction " +
+                             format(volume / container_volume(c)) +
+                             "); use fill = \"lattice\", fewer particles or a larger container");
+      }
+      const Vec3 q{(2 * uniform(gen) - 1) * (g.half_size.x - r),
+                   (2 * uniform(gen) - 1) * (g.half_size.y - r),
+                   (2 * uniform(gen) - 1) * (g.half_size.z - r)};
+      if (!inside(c, q, r)) continue;
+      const int ci = cell_coord(q.x, g.half_size.x, nx), cj = cell_coord(q.y, g.half_size.y, ny),
+                ck = cell_coord(q.z, g.half_size.z, nz);
+      bool free = true;
+      for (int k = std::max(0, ck - 1); free && k <= std::min(nz - 1, ck + 1); ++k)
+        for (int j = std::max(0, cj - 1); free && j <= std::min(ny - 1, cj + 1); ++j)
+          for (int i = std::max(0, ci - 1); free && i <= std::min(nx - 1, ci + 1); ++i)
+            for (int other : cells[index(i, j, k)]) {
+              const Vec3 d = q - centres[static_cast<std::size_t>(other)];
+              const double reach = r + radius[static_cast<std::size_t>(other)];
+              if (dot(d, d) < reach * reach) {
+                free = false;
+                break;
+              }
+            }
+      if (!free) continue;
+      cells[index(ci, cj, ck)].push_back(static_cast<int>(p));
+      centres.push_back(q);
+      break;
+    }
+  }
+  return centres;
+}
+
+Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend) {
+  Scene s;
+  const ContactSpec& contact = deck.contact;
+  s.threads = threads > 0 ? threads : deck.solver.threads;
+
+  // Backend: auto takes the GPU when there is one.
+  const Backend wanted = backend.value_or(deck.solver.backend);
+  std::string gpu;
+  const bool have_gpu = cuda_device_available(&gpu);
+  if (wanted == Backend::cuda && !have_gpu)
+    throw InputError(deck.where("solver.backend"), "solver.backend",
+                     "\"cuda\" requested but no usable CUDA device (" + gpu + ")");
+  s.backend = wanted == Backend::automatic ? (have_gpu ? Backend::cuda : Backend::cpu) : wanted;
+  s.backend_reason = wanted == Backend::automatic ? "auto: " + gpu : "requested";
+
+  ContactParams params;
+  params.friction = contact.friction;
+  params.rolling_friction = contact.rolling_friction;
+  params.linear_stiffness = contact.stiffness;
+  params.damping_factor = contact.model == NormalModel::linear
+                              ? linear_damping_factor(contact.restitution)
+                              : hertz_damping_factor(contact.restitution);
+  if (contact.model == NormalModel::hertz) {
+    // Same material for particles and walls: 1/E* = 2 (1 - nu^2)/E, 1/G* = 2 (2 - nu)/G.
+    const double e_star = contact.young / (2 * (1 - contact.poisson * contact.poisson));
+    const double shear = contact.young / (2 * (1 + contact.poisson));
+    const double g_star = shear / (2 * (2 - contact.poisson));
+    params.hertz_modulus_pp = params.hertz_modulus_pw = e_star;
+    params.shear_modulus_pp = params.shear_modulus_pw = g_star;
+  }
+
+  double r_min = 1e300, density_min = 0;
+  for (std::size_t k = 0; k < deck.dampers.size(); ++k) {
+    const DamperSpec& d = deck.dampers[k];
+    const std::string key = "damper[" + std::to_string(k) + "]";
+    DamperScene ds;
+    EngineConfig& e = ds.engine;
+    e.threads = s.threads;
+    e.backend = s.backend;
+    e.shape = d.container.shape == ContainerShape::box ? WallShape::box : WallShape::cylinder;
+    e.geometry = geometry_of(d.container);
+    e.radius = particle_radii(d.particles);
+    e.density = d.particles.density;
+    e.normal = contact.model;
+    e.tangential = contact.tangential;
+    e.rolling = contact.rolling_friction > 0;
+    if (deck.gravity && norm(*deck.gravity) > 0) e.gravity = deck.gravity;
+    e.contact = params;
+    const double r_max = *std::max_element(e.radius.begin(), e.radius.end());
+    const double smallest_extent =
+        2 * std::min({e.geometry.half_size.x, e.geometry.half_size.y, e.geometry.half_size.z});
+    if (2 * r_max >= smallest_extent)
+      throw InputError(deck.where(key + ".particles"), key + ".particles",
+                       "particle diameter " + format(2 * r_max) +
+                           " m does not fit in the container (smallest inner size " +
+                           format(smallest_extent) + " m)");
+    const std::vector<Vec3> centres = fill_particles(d, e.radius, deck.where(key + ".particles"));
+    double volume = 0;
+    for (std::size_t i = 0; i < centres.size(); ++i) {
+      e.particles.push_back({centres[i], {}, {}});
+      volume += 4.0 / 3.0 * kPi * std::pow(e.radius[i], 3);
+    }
+    ds.particle_mass = volume * e.density;
+    ds.fill_fraction = volume / container_volume(d.container);
+    for (double r : e.radius)
+      if (r < r_min) r_min = r, density_min = e.density;
+    s.dampers.push_back(std::move(ds));
+  }
+
+  // Time step: a fraction of the contact time (linear) or of the Rayleigh time (Hertz).
+  if (!deck.dampers.empty()) {
+    const double mass_min = density_min * 4.0 / 3.0 * kPi * r_min * r_min * r_min;
+    double safety = deck.solver.dt_safety;
+    if (contact.model == NormalModel::linear) {
+      s.contact_time = linear_contact_time(contact.stiffness, 0.5 * mass_min, contact.restitution);
+      if (safety <= 0) safety = 0.02;
+      s.dt = safety * s.contact_time;
+      s.dt_limit = s.contact_time / 8;
+      s.dt_basis = format(safety) + " x linear contact time " + format(s.contact_time) + " s";
+    } else {
+      s.rayleigh_time = rayleigh_time(r_min, density_min, contact.young, contact.poisson);
+      // Hertz binary contact time at 1 m/s: 2.87 (m*^2 / (R* E*^2 v))^(1/5) (Johnson 1985).
+      const double e_star = params.hertz_modulus_pp;
+      s.contact_time =
+          2.87 * std::pow(std::pow(0.5 * mass_min, 2) / (0.5 * r_min * e_star * e_star), 0.2);
+      if (safety <= 0) safety = 0.15;
+      s.dt = safety * s.rayleigh_time;
+      s.dt_limit = 0.4 * s.rayleigh_time;
+      s.dt_basis = format(safety) + " x Rayleigh time " + format(s.rayleigh_time) + " s";
+    }
+    if (deck.solver.dt > 0) {
+      if (deck.solver.dt > s.dt_limit && !deck.solver.allow_unstable)
+        throw InputError(deck.where("solver.dt"), "solver.dt",
+                         "dt = " + format(deck.solver.dt) + " s exceeds the stability limit " +
+                             format(s.dt_limit) +
+                             " s of this contact model; lower it, use dt = \"auto\", or set "
+                             "solver.allow_unstable = true");
+      s.dt = deck.solver.dt;
+      s.dt_basis = "given in the deck";
+    }
+  }
+
+  const ExcitationSpec& x = deck.excitation;
+  std::vector<double> f = x.frequencies;
+  if (x.kind == ExcitationKind::sine) f = {x.frequency};
+  if (x.kind == ExcitationKind::prescribed && f.empty()) f = {x.motion.frequency};
+  if (!f.empty()) {
+    s.lowest_frequency = *std::min_element(f.begin(), f.end());
+    s.highest_frequency = *std::max_element(f.begin(), f.end());
+  }
+  if (deck.dampers.empty()) {
+    // Bare structure: the exact propagator has no step limit; sample 256 steps a period.
+    const double f_top = s.highest_frequency > 0 ? s.highest_frequency : 100.0;
+    s.dt = deck.solver.dt > 0 ? deck.solver.dt : 1.0 / (256 * f_top);
+    s.dt_basis = deck.solver.dt > 0 ? "given in the deck" : "1/256 of the shortest period";
+  }
+  if (deck.coupling.scheme == CouplingScheme::tight && deck.coupling.every != 1)
+    throw InputError(deck.where("coupling.every"), "coupling.every",
+                     "tight coupling iterates every DEM step: expected 1");
+  for (auto& d : s.dampers) d.engine.dt = s.dt;
+  return s;
+}
+
+}  // namespace pdsim

@@ -1,0 +1,52 @@
+// The scene: the deck turned into what the solver runs (particle masses, contact constants,
+// time step, kernel variant, initial particle positions), with the physical cross-checks that
+// need derived quantities (particles fit, dt below the stability limit). deck -> scene -> solver.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "io/deck.hpp"
+#include "kernels/engine.hpp"
+
+namespace pdsim {
+
+struct DamperScene {
+  EngineConfig engine;       // dt is filled per run segment by the solver
+  double particle_mass = 0;  // kg, total
+  double fill_fraction = 0;  // particle volume / container volume
+};
+
+struct Scene {
+  std::vector<DamperScene> dampers;
+  Backend backend = Backend::cpu;
+  std::string backend_reason;
+  double dt = 0;                // s, largest step the solver may take
+  double dt_limit = 0;          // s, stability/accuracy limit for an explicit dt
+  double contact_time = 0;      // s, linear: exact binary contact time; hertz: estimate at 1 m/s
+  double rayleigh_time = 0;     // s, hertz only
+  std::string dt_basis;         // how dt was chosen
+  double structure_mass = 0;    // kg (sdof mass, beam total mass)
+  double lowest_frequency = 0;  // Hz, of the excitation
+  double highest_frequency = 0;
+  int threads = 0;
+};
+
+// Validates the physical consistency of `deck` and derives the scene. `threads` and `backend`
+// override the deck's [solver] values when given (command line).
+Scene build_scene(const Deck& deck, int threads = 0, std::optional<Backend> backend = {});
+
+// Restitution-consistent damping factors (brief section 2).
+double linear_damping_factor(double restitution);  // c = factor sqrt(m* k)
+double hertz_damping_factor(double restitution);   // c = factor sqrt(Sn m*)
+
+// Exact contact time of the linear spring-dashpot: pi / sqrt(k/m* - (c/2m*)^2).
+double linear_contact_time(double stiffness, double mass_eff, double restitution);
+// Rayleigh time pi r sqrt(rho/G) / (0.1631 nu + 0.8766).
+double rayleigh_time(double radius, double density, double young, double poisson);
+
+// Initial particle centres (world frame, container centred at the origin) for one damper.
+std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<double>& radius,
+                                 const SourcePos& where);
+
+}  // namespace pdsim

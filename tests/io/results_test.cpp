@@ -1,0 +1,266 @@
+#include "io/results.hpp"
+
+#include <doctest/doctest.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+using pdsim::Results;
+
+namespace {
+
+// A fresh directory per test case and process, so parallel ctest runs do not collide.
+fs::path scratch_dir(const std::string& test_name) {
+  const fs::path dir = fs::temp_directory_path() /
+                       ("pdsim_results_test_" + test_name + "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Longer than the 64 KiB an attribute can hold in an object header, multi-line, non-ASCII.
+std::string long_deck_text() {
+  std::string deck = "# Saeki (2002) damper, 250 particles\n[structure]\nmass = 2.37  # kg\n";
+  for (int i = 0; deck.size() < 100000; ++i) {
+    deck += "[[note]]\ntext = \"line " + std::to_string(i) + ": \\u03b6 = 0.01, \xce\xbc = 0.3\"\n";
+  }
+  return deck + "\ttab and \"quotes\" at the end";
+}
+
+// Values whose decimal or single-precision storage would not survive bit-exact.
+std::vector<double> awkward(double scale) {
+  return {scale / 3.0,
+          -scale * 0.1,
+          scale * 1e-310,
+          scale * 1.7976931348623157e308,
+          std::numeric_limits<double>::infinity(),
+          -0.0};
+}
+
+Results full_results() {
+  Results r;
+  r.meta_text = {{"deck", long_deck_text()},
+                 {"version", "0.1.0-g1234567-dirty"},
+                 {"backend", "cpu"},
+                 {"title", "Saeki 250 particles"},
+                 {"empty", ""}};
+  r.meta_numbers = {{"threads", 2},
+                    {"dt", 2.0 / 3.0 * 1e-6},
+                    {"wall_time_s", 12.345678901234567},
+                    {"particle_steps", 1.25e9}};
+  r.timeseries = {awkward(1), awkward(2), awkward(3), awkward(4)};
+  r.frf.frequency = {10.0, 15.16, 20.0};
+  r.frf.amplitude = {1.0 / 7.0 * 1e-3, 3.24e-3, 1.09e-3};
+  r.frf.phase = {-0.1, -1.5707963267948966, -3.0};
+  r.frf.rms = {1e-4, 2e-3, 7e-4};
+  r.frf.peak = {1.4e-4, 3.3e-3, 1.1e-3};
+  r.frf.periods = {40, 2147483647, -2147483647 - 1};
+  r.frf.converged = {1, 0, 1};
+  r.frf.dissipated_energy = {1e-5, 2e-3, 3e-4};
+  r.frf.dissipated_normal = {6e-6, 1.5e-3, 2e-4};
+  r.frf.dissipated_tangential = {4e-6, 5e-4, 1e-4};
+  r.prescribed = {{5.0, 25.0}, {0.1 / 3.0, 0.2 / 3.0}, {0.5, 0.7}, {0.25, -0.25}};
+  r.energy =
+      pdsim::EnergySeries{awkward(5), awkward(6), awkward(7), awkward(8), awkward(9), awkward(10)};
+  r.checkpoint = {{"structure_state", {1e-3, -2e-4, 0.5}},
+                  {"particle_positions", awkward(11)},
+                  {"rng_state", {}}};
+  return r;
+}
+
+void check_equal(const Results& a, const Results& b) {
+  CHECK(a.meta_text == b.meta_text);
+  CHECK(a.meta_numbers == b.meta_numbers);
+  CHECK(a.timeseries.time == b.timeseries.time);
+  CHECK(a.timeseries.displacement == b.timeseries.displacement);
+  CHECK(a.timeseries.velocity == b.timeseries.velocity);
+  CHECK(a.timeseries.damper_force == b.timeseries.damper_force);
+  CHECK(a.frf.frequency == b.frf.frequency);
+  CHECK(a.frf.amplitude == b.frf.amplitude);
+  CHECK(a.frf.phase == b.frf.phase);
+  CHECK(a.frf.rms == b.frf.rms);
+  CHECK(a.frf.peak == b.frf.peak);
+  CHECK(a.frf.periods == b.frf.periods);
+  CHECK(a.frf.converged == b.frf.converged);
+  CHECK(a.frf.dissipated_energy == b.frf.dissipated_energy);
+  CHECK(a.frf.dissipated_normal == b.frf.dissipated_normal);
+  CHECK(a.frf.dissipated_tangential == b.frf.dissipated_tangential);
+  CHECK(a.prescribed.frequency == b.prescribed.frequency);
+  CHECK(a.prescribed.dissipated_power == b.prescribed.dissipated_power);
+  CHECK(a.prescribed.force_amplitude == b.prescribed.force_amplitude);
+  CHECK(a.prescribed.force_phase == b.prescribed.force_phase);
+  REQUIRE(a.energy.has_value() == b.energy.has_value());
+  if (a.energy) {
+    CHECK(a.energy->time == b.energy->time);
+    CHECK(a.energy->kinetic == b.energy->kinetic);
+    CHECK(a.energy->elastic == b.energy->elastic);
+    CHECK(a.energy->dissipated_normal == b.energy->dissipated_normal);
+    CHECK(a.energy->dissipated_tangential == b.energy->dissipated_tangential);
+    CHECK(a.energy->work_in == b.energy->work_in);
+  }
+  CHECK(a.checkpoint == b.checkpoint);
+}
+
+// Runs h5dump (hdf5-tools) and returns its output, or nothing when it exits non-zero.
+std::optional<std::string> h5dump(const std::string& arguments, const fs::path& dir) {
+  const fs::path out = dir / "h5dump.txt";
+  const std::string command = "h5dump " + arguments + " > '" + out.string() + "' 2>&1";
+  if (std::system(command.c_str()) != 0) return std::nullopt;
+  std::ifstream in(out);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+}  // namespace
+
+TEST_CASE("results: every field round-trips bit-exactly, including checkpoint and a long deck") {
+  const fs::path dir = scratch_dir("roundtrip");
+  const std::string path = (dir / "run.h5").string();
+  const Results written = full_results();
+  REQUIRE(written.meta_text.at("deck").size() > 65536);
+  pdsim::write_results(path, written, true);
+  check_equal(pdsim::read_results(path), written);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("results: groups with no data are not written and read back empty") {
+  const fs::path dir = scratch_dir("empty_groups");
+  const std::string path = (dir / "run.h5").string();
+  Results written;
+  written.meta_text["deck"] = "[run]\n";
+  written.timeseries.displacement = {1.0};  // no time: the group is skipped
+  pdsim::write_results(path, written, true);
+  const Results read = pdsim::read_results(path);
+  CHECK(read.meta_text == written.meta_text);
+  CHECK(read.meta_numbers.empty());  // `complete` is a file property, not a Results entry
+  CHECK(read.timeseries.displacement.empty());
+  CHECK(read.frf.frequency.empty());
+  CHECK(read.prescribed.frequency.empty());
+  CHECK_FALSE(read.energy.has_value());
+  CHECK(read.checkpoint.empty());
+  fs::remove_all(dir);
+}
+
+TEST_CASE("results: an incomplete write leaves only the .partial file, a complete one only path") {
+  const fs::path dir = scratch_dir("atomic");
+  const fs::path path = dir / "run.h5";
+  const fs::path partial = dir / "run.h5.partial";
+  Results results = full_results();
+
+  pdsim::write_results(path.string(), results, false);
+  CHECK(fs::exists(partial));
+  CHECK_FALSE(fs::exists(path));
+  // A resumed run continues from what the .partial file holds.
+  check_equal(pdsim::read_results(partial.string()), results);
+
+  // Rewriting the partial truncates it: a checkpoint array dropped since is gone.
+  results.checkpoint.erase("particle_positions");
+  pdsim::write_results(path.string(), results, false);
+  CHECK(pdsim::read_results(partial.string()).checkpoint == results.checkpoint);
+  CHECK_FALSE(fs::exists(path));
+
+  results.checkpoint.clear();
+  pdsim::write_results(path.string(), results, true);
+  CHECK(fs::exists(path));
+  CHECK_FALSE(fs::exists(partial));
+  check_equal(pdsim::read_results(path.string()), results);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("results: failures throw with the path in the message") {
+  const fs::path dir = scratch_dir("errors");
+  const std::string missing_dir = (dir / "no_such_dir" / "run.h5").string();
+  CHECK_THROWS_WITH_AS(pdsim::write_results(missing_dir, full_results(), true),
+                       doctest::Contains(missing_dir.c_str()), std::runtime_error);
+  CHECK_FALSE(fs::exists(missing_dir));
+
+  const std::string missing_file = (dir / "absent.h5").string();
+  CHECK_THROWS_WITH_AS(pdsim::read_results(missing_file), doctest::Contains(missing_file.c_str()),
+                       std::runtime_error);
+
+  const std::string not_hdf5 = (dir / "text.h5").string();
+  std::ofstream(not_hdf5) << "not an HDF5 file\n";
+  CHECK_THROWS_WITH_AS(pdsim::read_results(not_hdf5), doctest::Contains(not_hdf5.c_str()),
+                       std::runtime_error);
+
+  // Two attributes with one name cannot both exist in /meta.
+  Results clash;
+  clash.meta_text["dt"] = "1e-6";
+  clash.meta_numbers["dt"] = 1e-6;
+  const std::string clash_path = (dir / "clash.h5").string();
+  CHECK_THROWS_WITH_AS(pdsim::write_results(clash_path, clash, true), doctest::Contains("/meta/dt"),
+                       std::runtime_error);
+  CHECK_FALSE(fs::exists(clash_path));
+  fs::remove_all(dir);
+}
+
+TEST_CASE("results: h5dump finds the object names of the brief's output contract") {
+  if (std::system("command -v h5dump > /dev/null 2>&1") != 0) {
+    MESSAGE("h5dump (Debian hdf5-tools) is not on PATH: contract check skipped");
+    return;
+  }
+  const fs::path dir = scratch_dir("h5dump");
+  const std::string path = (dir / "run.h5").string();
+  pdsim::write_results(path, full_results(), true);
+
+  const char* datasets[] = {"/timeseries/time",
+                            "/timeseries/displacement",
+                            "/timeseries/velocity",
+                            "/timeseries/damper_force",
+                            "/frf/frequency",
+                            "/frf/amplitude",
+                            "/frf/phase",
+                            "/frf/rms",
+                            "/frf/peak",
+                            "/frf/periods",
+                            "/frf/converged",
+                            "/frf/dissipated_energy",
+                            "/frf/dissipated_normal",
+                            "/frf/dissipated_tangential",
+                            "/prescribed/frequency",
+                            "/prescribed/dissipated_power",
+                            "/prescribed/force_amplitude",
+                            "/prescribed/force_phase",
+                            "/energy/time",
+                            "/energy/kinetic",
+                            "/energy/elastic",
+                            "/energy/dissipated_normal",
+                            "/energy/dissipated_tangential",
+                            "/energy/work_in",
+                            "/checkpoint/structure_state"};
+  for (const char* dataset : datasets) {
+    CAPTURE(dataset);
+    CHECK(h5dump("-H -d " + std::string(dataset) + " '" + path + "'", dir).has_value());
+  }
+  for (const char* attribute : {"deck", "version", "backend", "threads", "dt", "wall_time_s",
+                                "particle_steps", "complete"}) {
+    CAPTURE(attribute);
+    CHECK(h5dump("-H -a /meta/" + std::string(attribute) + " '" + path + "'", dir).has_value());
+  }
+  // Negative control: h5dump must fail on a name that is not there.
+  CHECK_FALSE(h5dump("-H -d /frf/no_such_dataset '" + path + "'", dir).has_value());
+
+  const auto periods = h5dump("-H -d /frf/periods '" + path + "'", dir);
+  REQUIRE(periods.has_value());
+  CHECK(periods->find("H5T_STD_I32LE") != std::string::npos);
+  CHECK(periods->find("( 3 )") != std::string::npos);
+  const auto amplitude = h5dump("-H -d /frf/amplitude '" + path + "'", dir);
+  REQUIRE(amplitude.has_value());
+  CHECK(amplitude->find("H5T_IEEE_F64LE") != std::string::npos);
+  const auto complete = h5dump("-a /meta/complete '" + path + "'", dir);
+  REQUIRE(complete.has_value());
+  CHECK(complete->find("(0): 1") != std::string::npos);
+  const auto version = h5dump("-a /meta/version '" + path + "'", dir);
+  REQUIRE(version.has_value());
+  CHECK(version->find("\"0.1.0-g1234567-dirty\"") != std::string::npos);
+  fs::remove_all(dir);
+}

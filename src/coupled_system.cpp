@@ -70,6 +70,13 @@ void CoupledSystem::set_initial_displacement(double x0) {
   const Eigen::VectorXd shape = structure_.stiffness.ldlt().solve(structure_.force_shape);
   integrator_->q = x0 / response(shape) * shape;
   integrator_->v.setZero();
+  // The particles were placed in containers at rest at the origin: carry them along.
+  for (std::size_t k = 0; k < engines_.size(); ++k) {
+    const double u = structure_.attachment_translation.row(static_cast<int>(k)) * integrator_->q;
+    std::vector<ParticleState> particles = engines_[k]->particles();
+    for (ParticleState& p : particles) p.position += u * direction_;
+    engines_[k]->set_particles(particles);
+  }
 }
 
 double CoupledSystem::response(const Eigen::VectorXd& q) const {

@@ -1,0 +1,730 @@
+// Deck parsing and validation (brief section 5). Every value is checked where it is read, so an
+// error names the exact key, its position in the file and what was expected.
+#include "io/deck.hpp"
+
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <sstream>
+#include <string_view>
+#include <utility>
+
+namespace pdsim {
+namespace {
+
+// Guards against typos (an extra zero), not hardware limits.
+constexpr std::int64_t kMaxParticles = 50'000'000;
+constexpr std::int64_t kMaxElements = 10'000;
+constexpr std::int64_t kMaxPeriods = 1'000'000;
+constexpr std::size_t kMaxFrequencies = 10'000;
+
+using Check = bool (*)(double);
+constexpr Check positive = [](double v) { return v > 0; };
+constexpr Check non_negative = [](double v) { return v >= 0; };
+constexpr Check any_value = [](double) { return true; };
+constexpr Check fraction_range = [](double v) { return v > 0 && v <= 1; };   // also restitution
+constexpr Check poisson_range = [](double v) { return v > -1 && v < 0.5; };  // isotropic bounds
+
+SourcePos to_pos(const std::string& file, const toml::source_region& region) {
+  return {file, static_cast<int>(region.begin.line), static_cast<int>(region.begin.column)};
+}
+
+std::string show(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.10g", value);
+  return text;
+}
+
+// A real as TOML writes it, so that 250.0 is not mistaken for the integer 250.
+std::string show_real(double value) {
+  std::string text = show(value);
+  if (std::isfinite(value) && text.find_first_of(".e") == std::string::npos) text += ".0";
+  return text;
+}
+
+// What the user wrote, for "expected X, got Y".
+std::string describe(const toml::node& node) {
+  if (auto v = node.as_floating_point()) return show_real(v->get());
+  if (auto v = node.as_integer()) return std::to_string(v->get());
+  if (auto v = node.as_string()) return "\"" + v->get() + "\"";
+  if (auto v = node.as_boolean()) return v->get() ? "true" : "false";
+  if (node.is_array()) return "an array";
+  if (node.is_table()) return "a table";
+  return "a date or time";
+}
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+using Names = std::initializer_list<std::string_view>;
+
+// The valid name within 3 edits of `given`, if any.
+std::string_view closest(std::string_view given, Names valid) {
+  std::string_view best;
+  std::size_t best_distance = 4;
+  for (std::string_view name : valid) {
+    const std::size_t d = edit_distance(given, name);
+    if (d < best_distance) {
+      best_distance = d;
+      best = name;
+    }
+  }
+  return best;
+}
+
+std::string one_of(Names valid) {
+  std::string list;
+  for (std::string_view name : valid)
+    list += (list.empty() ? "\"" : ", \"") + std::string(name) + "\"";
+  return "one of " + list;
+}
+
+// A TOML table with its dotted name, so that every error can name the key in full.
+class Table {
+ public:
+  Table(const toml::table& table, std::string name, SourcePos pos)
+      : table_(table), name_(std::move(name)), pos_(std::move(pos)) {}
+
+  std::string key(std::string_view k) const {
+    return name_.empty() ? std::string(k) : name_ + "." + std::string(k);
+  }
+  bool has(std::string_view k) const { return table_.contains(k); }
+  const toml::node* node(std::string_view k) const { return table_.get(k); }
+
+  [[noreturn]] void fail(std::string_view k, const std::string& what) const {
+    const toml::node* given = table_.get(k);
+    throw InputError(given ? at(*given) : pos_, key(k), what);
+  }
+  [[noreturn]] void missing(std::string_view k, const std::string& expected,
+                            const std::string& why) const {
+    throw InputError(pos_, key(k), "missing: expected " + expected + ", required " + why);
+  }
+  [[noreturn]] void wrong(const toml::node& node, std::string_view k,
+                          const std::string& expected) const {
+    throw InputError(at(node), key(k), "expected " + expected + ", got " + describe(node));
+  }
+
+  // Refuses any key not in `valid`; `context` says why the set is what it is.
+  void allow_only(Names valid, const std::string& context = "") const {
+    for (const auto& entry : table_) {
+      const toml::key& k = entry.first;
+      if (std::find(valid.begin(), valid.end(), k.str()) != valid.end()) continue;
+      const std::string_view best = closest(k.str(), valid);
+      std::string list;
+      for (std::string_view name : valid) list += (list.empty() ? "" : ", ") + std::string(name);
+      throw InputError(to_pos(pos_.file, k.source()), key(k.str()),
+                       "unknown key" + context +
+                           (best.empty() ? "; valid here: " + list
+                                         : "; did you mean '" + std::string(best) + "'?"));
+    }
+  }
+
+  std::optional<double> real(std::string_view k, const std::string& expected, Check ok) const {
+    const toml::node* node = table_.get(k);
+    if (!node) return std::nullopt;
+    return real_of(*node, k, expected, ok);
+  }
+  double need_real(std::string_view k, const std::string& expected, Check ok,
+                   const std::string& why) const {
+    if (!has(k)) missing(k, expected, why);
+    return *real(k, expected, ok);
+  }
+
+  std::optional<std::int64_t> integer(std::string_view k, std::int64_t lo, std::int64_t hi,
+                                      const std::string& what = "") const {
+    const toml::node* node = table_.get(k);
+    if (!node) return std::nullopt;
+    const auto* value = node->as_integer();
+    if (!value || value->get() < lo || value->get() > hi) wrong(*node, k, range(lo, hi, what));
+    return value->get();
+  }
+  std::int64_t need_integer(std::string_view k, std::int64_t lo, std::int64_t hi,
+                            const std::string& what, const std::string& why) const {
+    if (!has(k)) missing(k, range(lo, hi, what), why);
+    return *integer(k, lo, hi, what);
+  }
+
+  std::optional<std::string> text(std::string_view k) const {
+    const toml::node* node = table_.get(k);
+    if (!node) return std::nullopt;
+    const auto* value = node->as_string();
+    if (!value) wrong(*node, k, "a string");
+    return value->get();
+  }
+
+  std::optional<bool> boolean(std::string_view k) const {
+    const toml::node* node = table_.get(k);
+    if (!node) return std::nullopt;
+    const auto* value = node->as_boolean();
+    if (!value) wrong(*node, k, "true or false");
+    return value->get();
+  }
+
+  // A string naming one of `names`; returns its index.
+  std::optional<std::size_t> choice(std::string_view k, Names names) const {
+    const toml::node* node = table_.get(k);
+    if (!node) return std::nullopt;
+    const auto* value = node->as_string();
+    if (!value) wrong(*node, k, one_of(names));
+    const auto found = std::find(names.begin(), names.end(), value->get());
+    if (found == names.end()) {
+      const std::string_view best = closest(value->get(), names);
+      throw InputError(at(*node), key(k),
+                       "expected " + one_of(names) + ", got " + describe(*node) +
+                           (best.empty() ? "" : "; did you mean \"" + std::string(best) + "\"?"));
+    }
+    return static_cast<std::size_t>(found - names.begin());
+  }
+  std::size_t need_choice(std::string_view k, Names names, const std::string& why) const {
+    if (!has(k)) missing(k, one_of(names), why);
+    return *choice(k, names);
+  }
+
+  // An array of numbers, each checked; `count` = 0 accepts any non-zero length.
+  std::optional<std::vector<double>> reals(std::string_view k, std::size_t count,
+                                           const std::string& expected, Check ok) const {
+    const toml::node* node = table_.get(k);
+    if (!node) return std::nullopt;
+    const toml::array* array = node->as_array();
+    if (!array || array->empty() || (count > 0 && array->size() != count))
+      throw InputError(at(*node), key(k), "expected " + expected + ", got " + array_shape(*node));
+    std::vector<double> values;
+    for (const toml::node& element : *array) values.push_back(real_of(element, k, expected, ok));
+    return values;
+  }
+
+  std::optional<Vec3> vec3(std::string_view k, const std::string& expected, Check ok) const {
+    const auto values = reals(k, 3, expected, ok);
+    if (!values) return std::nullopt;
+    return Vec3{(*values)[0], (*values)[1], (*values)[2]};
+  }
+
+  // A non-zero vector, returned normalised.
+  std::optional<Vec3> direction(std::string_view k) const {
+    const std::string expected = "a non-zero vector of 3 numbers [x, y, z]";
+    const auto v = vec3(k, expected, any_value);
+    if (!v) return std::nullopt;
+    const double length = norm(*v);
+    if (length == 0) fail(k, "expected " + expected + ", got [0, 0, 0]");
+    return (1.0 / length) * *v;
+  }
+
+  std::optional<Table> sub(std::string_view k, const std::string& expected) const {
+    const toml::node* node = table_.get(k);
+    if (!node) return std::nullopt;
+    const toml::table* table = node->as_table();
+    if (!table) wrong(*node, k, expected);
+    return Table(*table, key(k), at(*node));
+  }
+  Table need_sub(std::string_view k, const std::string& expected, const std::string& why) const {
+    if (!has(k)) missing(k, expected, why);
+    return *sub(k, expected);
+  }
+
+ private:
+  SourcePos at(const toml::node& node) const { return to_pos(pos_.file, node.source()); }
+
+  double real_of(const toml::node& node, std::string_view k, const std::string& expected,
+                 Check ok) const {
+    std::optional<double> value;
+    if (const auto* f = node.as_floating_point()) value = f->get();
+    if (const auto* i = node.as_integer()) value = static_cast<double>(i->get());
+    if (!value || !std::isfinite(*value) || !ok(*value)) wrong(node, k, expected);
+    return *value;
+  }
+
+  static std::string range(std::int64_t lo, std::int64_t hi, const std::string& what) {
+    return "an integer " + what + (what.empty() ? "" : " ") + "from " + std::to_string(lo) +
+           " to " + std::to_string(hi);
+  }
+  static std::string array_shape(const toml::node& node) {
+    const toml::array* array = node.as_array();
+    if (!array) return describe(node);
+    return "an array of " + std::to_string(array->size());
+  }
+
+  const toml::table& table_;
+  std::string name_;
+  SourcePos pos_;
+};
+
+void record_positions(const toml::table& table, const std::string& prefix, const std::string& file,
+                      std::map<std::string, SourcePos>& positions) {
+  for (auto&& [k, node] : table) {
+    const std::string name =
+        prefix.empty() ? std::string(k.str()) : prefix + "." + std::string(k.str());
+    positions[name] = to_pos(file, node.source());
+    if (const toml::table* sub = node.as_table()) record_positions(*sub, name, file, positions);
+    const toml::array* array = node.as_array();
+    if (!array) continue;
+    for (std::size_t i = 0; i < array->size(); ++i) {
+      const toml::table* element = (*array)[i].as_table();
+      if (!element) continue;
+      const std::string indexed = name + "[" + std::to_string(i) + "]";
+      positions[indexed] = to_pos(file, element->source());
+      record_positions(*element, indexed, file, positions);
+    }
+  }
+}
+
+void read_section(const Table& section, BeamSpec& beam) {
+  const std::string why = "for a beam section";
+  const auto shape = section.choice("shape", {"rectangle", "circle"});
+  if (!shape) {
+    section.allow_only({"shape", "area", "inertia", "height", "shear_factor"},
+                       " for a section given by area and inertia");
+    beam.area = section.need_real("area", "a positive number (m^2)", positive, why);
+    beam.inertia = section.need_real("inertia", "a positive number (m^4)", positive, why);
+    beam.section_height = section.real("height", "a positive number (m)", positive).value_or(0);
+    const auto shear = section.real("shear_factor", "a number in (0, 1]", fraction_range);
+    if (beam.timoshenko && !shear)
+      section.missing("shear_factor", "a number in (0, 1]", "by timoshenko = true");
+    beam.shear_factor = shear.value_or(0);
+  } else if (*shape == 0) {
+    section.allow_only({"shape", "width", "height"}, " for shape = \"rectangle\"");
+    const double width = section.need_real("width", "a positive number (m)", positive, why);
+    const double height = section.need_real("height", "a positive number (m)", positive, why);
+    beam.area = width * height;
+    beam.inertia = width * height * height * height / 12;  // b h^3 / 12, height along direction
+    beam.shear_factor = 5.0 / 6.0;                         // the classical rectangle value
+    beam.section_height = height;
+  } else {
+    section.allow_only({"shape", "diameter"}, " for shape = \"circle\"");
+    const double d = section.need_real("diameter", "a positive number (m)", positive, why);
+    beam.area = kPi * d * d / 4;
+    beam.inertia = kPi * d * d * d * d / 64;
+    beam.shear_factor = 0.9;  // solid circle; Cowper (1966) gives 6(1+nu)/(7+6nu) = 0.89 at 0.3
+    beam.section_height = d;
+  }
+}
+
+StructureSpec read_structure(const Table& t) {
+  StructureSpec s;
+  const Names integrators = {"exact", "cvode"};
+  const bool beam = t.need_choice("kind", {"sdof", "beam"}, "in every [structure]") == 1;
+  if (!beam) {
+    s.kind = StructureKind::sdof;
+    t.allow_only(
+        {"kind", "mass", "stiffness", "damping_ratio", "damping", "direction", "integrator"},
+        " for kind = \"sdof\"");
+    const std::string why = "for kind = \"sdof\"";
+    s.mass = t.need_real("mass", "a positive number (kg)", positive, why);
+    s.stiffness = t.need_real("stiffness", "a positive number (N/m)", positive, why);
+    const auto ratio = t.real("damping_ratio", "a non-negative number", non_negative);
+    const auto damping = t.real("damping", "a non-negative number (N s/m)", non_negative);
+    if (ratio && damping) t.fail("damping", "give either damping or damping_ratio, not both");
+    const double critical = 2 * std::sqrt(s.stiffness * s.mass);  // c_c = 2 sqrt(K M)
+    s.damping_ratio = ratio ? *ratio : damping.value_or(0) / critical;
+    s.damping = damping ? *damping : s.damping_ratio * critical;
+  } else {
+    s.kind = StructureKind::beam;
+    t.allow_only(
+        {"kind", "length", "elements", "young", "density", "poisson", "section", "supports",
+         "damping_ratio", "rayleigh", "timoshenko", "direction", "modes", "integrator"},
+        " for kind = \"beam\"");
+    const std::string why = "for kind = \"beam\"";
+    BeamSpec& b = s.beam;
+    b.length = t.need_real("length", "a positive number (m)", positive, why);
+    b.elements = static_cast<int>(t.need_integer("elements", 1, kMaxElements, "", why));
+    b.young = t.need_real("young", "a positive number (Pa)", positive, why);
+    b.density = t.need_real("density", "a positive number (kg/m^3)", positive, why);
+    b.poisson = t.real("poisson", "a number in (-1, 0.5)", poisson_range).value_or(b.poisson);
+    b.timoshenko = t.boolean("timoshenko").value_or(false);
+    const std::string section_kinds =
+        "a table { shape = \"rectangle\", width, height }, { shape = \"circle\", diameter } or "
+        "{ area, inertia }";
+    read_section(t.need_sub("section", section_kinds, why), b);
+    if (const auto supports = t.sub("supports", "a table { start, end }")) {
+      supports->allow_only({"start", "end"});
+      const Names kinds = {"clamped", "pinned", "free"};
+      const Support all[] = {Support::clamped, Support::pinned, Support::free};
+      if (const auto i = supports->choice("start", kinds)) b.start = all[*i];
+      if (const auto i = supports->choice("end", kinds)) b.end = all[*i];
+    }
+    const auto ratio = t.real("damping_ratio", "a non-negative number", non_negative);
+    const auto rayleigh =
+        t.reals("rayleigh", 2, "two non-negative numbers [alpha (1/s), beta (s)]", non_negative);
+    if (ratio && rayleigh) t.fail("rayleigh", "give either rayleigh or damping_ratio, not both");
+    s.damping_ratio = ratio.value_or(0);
+    if (rayleigh) s.rayleigh = std::array<double, 2>{(*rayleigh)[0], (*rayleigh)[1]};
+    // two DOF (deflection, slope) per node
+    s.modes = static_cast<int>(t.integer("modes", 0, 2 * (kMaxElements + 1)).value_or(0));
+  }
+  s.direction = t.direction("direction").value_or(s.direction);
+  if (const auto i = t.choice("integrator", integrators))
+    s.integrator = *i == 0 ? IntegratorKind::exact : IntegratorKind::cvode;
+  return s;
+}
+
+DamperSpec read_damper(const Table& t, const StructureSpec& structure) {
+  DamperSpec d;
+  t.allow_only({"container", "particles", "attach"});
+  const std::string why = "in every [[damper]]";
+
+  const Table c = t.need_sub(
+      "container", "a table { shape = \"box\", size } or { shape = \"cylinder\", radius, height }",
+      why);
+  if (c.need_choice("shape", {"box", "cylinder"}, "for a container") == 0) {
+    c.allow_only({"shape", "size"}, " for shape = \"box\"");
+    d.container.shape = ContainerShape::box;
+    const std::string expected = "3 positive edge lengths [a, b, c] (m)";
+    if (!c.has("size")) c.missing("size", expected, "for shape = \"box\"");
+    d.container.size = *c.vec3("size", expected, positive);
+  } else {
+    c.allow_only({"shape", "radius", "height"}, " for shape = \"cylinder\"");
+    d.container.shape = ContainerShape::cylinder;
+    const std::string cylinder = "for shape = \"cylinder\"";
+    d.container.radius = c.need_real("radius", "a positive number (m)", positive, cylinder);
+    d.container.height = c.need_real("height", "a positive number (m)", positive, cylinder);
+  }
+
+  const Table p = t.need_sub("particles", "a table { count, diameter, density }", why);
+  p.allow_only({"count", "diameter", "diameters", "diameter_range", "density", "seed", "fill"});
+  ParticleSpec& ps = d.particles;
+  ps.count = static_cast<int>(p.need_integer("count", 1, kMaxParticles, "", "for particles"));
+  const int sizes = int(p.has("diameter")) + int(p.has("diameters")) + int(p.has("diameter_range"));
+  if (sizes == 0)
+    p.missing("diameter", "a positive number (m) (or diameters or diameter_range)",
+              "for particles");
+  if (sizes > 1)
+    p.fail(p.has("diameter_range") ? "diameter_range" : "diameters",
+           "give only one of diameter, diameters and diameter_range");
+  ps.diameter = p.real("diameter", "a positive number (m)", positive).value_or(0);
+  ps.diameters = p.reals("diameters", 0, "a non-empty array of positive numbers (m)", positive)
+                     .value_or(std::vector<double>{});
+  const std::string range = "two positive numbers [min, max] with min <= max (m)";
+  if (const auto minmax = p.reals("diameter_range", 2, range, positive)) {
+    if ((*minmax)[0] > (*minmax)[1])
+      p.fail("diameter_range", "expected " + range + ", got [" + show((*minmax)[0]) + ", " +
+                                   show((*minmax)[1]) + "]");
+    ps.diameter_min = (*minmax)[0];
+    ps.diameter_max = (*minmax)[1];
+  }
+  ps.density = p.need_real("density", "a positive number (kg/m^3)", positive, "for particles");
+  ps.seed = static_cast<std::uint64_t>(
+      p.integer("seed", 0, std::numeric_limits<std::int64_t>::max()).value_or(1));
+  if (const auto fill = p.choice("fill", {"random", "lattice"}))
+    ps.fill = *fill == 0 ? Fill::random : Fill::lattice;
+
+  const std::string attach_kinds = "a table { node = K } or { x = position along the beam (m) }";
+  const auto attach = t.sub("attach", attach_kinds);
+  if (structure.kind != StructureKind::beam) {
+    if (attach)
+      t.fail("attach",
+             "only a beam structure takes attach (an sdof carries its dampers on its "
+             "mass; a prescribed motion moves them directly)");
+    return d;
+  }
+  if (!attach) t.missing("attach", attach_kinds, "for a beam structure");
+  attach->allow_only({"node", "x"});
+  if (attach->has("node") == attach->has("x"))
+    t.fail("attach", "expected " + attach_kinds + " (exactly one of node and x)");
+  d.attach_node = static_cast<int>(
+      attach->integer("node", 0, structure.beam.elements, "(node index)").value_or(-1));
+  if (attach->has("x")) {
+    const std::string expected =
+        "a position along the beam from 0 to " + show(structure.beam.length) + " (m)";
+    const double x = *attach->real("x", expected, any_value);
+    if (x < 0 || x > structure.beam.length) attach->wrong(*attach->node("x"), "x", expected);
+    d.attach_x = x;
+  }
+  return d;
+}
+
+ContactSpec read_contact(const std::optional<Table>& t, const Table& top, bool has_particles) {
+  ContactSpec c;
+  if (t) {
+    t->allow_only({"model", "tangential", "young", "poisson", "restitution", "friction",
+                   "stiffness", "rolling_friction"});
+    if (const auto i = t->choice("model", {"linear", "hertz"}))
+      c.model = *i == 0 ? NormalModel::linear : NormalModel::hertz;
+    const TangentialModel tangential[] = {TangentialModel::none, TangentialModel::directional,
+                                          TangentialModel::history};
+    if (const auto i = t->choice("tangential", {"none", "directional", "history"}))
+      c.tangential = tangential[*i];
+    c.young = t->real("young", "a positive number (Pa)", positive).value_or(c.young);
+    c.poisson = t->real("poisson", "a number in (-1, 0.5)", poisson_range).value_or(c.poisson);
+    c.restitution =
+        t->real("restitution", "a number in (0, 1]", fraction_range).value_or(c.restitution);
+    c.friction = t->real("friction", "a non-negative number", non_negative).value_or(c.friction);
+    c.stiffness = t->real("stiffness", "a positive number (N/m)", positive).value_or(c.stiffness);
+    c.rolling_friction = t->real("rolling_friction", "a non-negative number", non_negative)
+                             .value_or(c.rolling_friction);
+  }
+  if (!has_particles) return c;
+  const Table& where = t ? *t : top;
+  const std::string prefix = t ? "" : "contact.";
+  if (c.model == NormalModel::linear && c.stiffness == 0)
+    where.missing(prefix + "stiffness", "a positive number (N/m)", "for model = \"linear\"");
+  // Hertz needs E*; Mindlin's tangential stiffness needs G* = f(E, nu) even with a linear normal.
+  if (c.model == NormalModel::hertz && c.young == 0)
+    where.missing(prefix + "young", "a positive number (Pa)", "for model = \"hertz\"");
+  if (c.tangential == TangentialModel::history && c.young == 0)
+    where.missing(prefix + "young", "a positive number (Pa)", "for tangential = \"history\"");
+  return c;
+}
+
+std::vector<double> read_frequencies(const Table& t) {
+  std::vector<double> f;
+  const toml::node* given = t.node("frequencies");
+  if (given && given->is_table()) {
+    const Table sweep = *t.sub("frequencies", "");
+    sweep.allow_only({"start", "stop", "step"});
+    const std::string why = "for a frequency sweep";
+    const double start = sweep.need_real("start", "a positive number (Hz)", positive, why);
+    const double stop = sweep.need_real("stop", "a positive number (Hz)", positive, why);
+    const double step = sweep.need_real("step", "a positive number (Hz)", positive, why);
+    if (stop < start)
+      sweep.fail("stop", "expected a number >= start (" + show(start) + " Hz), got " + show(stop));
+    // Inclusive of stop within rounding: 0.1..0.7 step 0.1 is 7 values, although
+    // (0.7 - 0.1) / 0.1 = 5.999999999999999 in doubles.
+    const double intervals = std::floor((stop - start) / step + 1e-6);
+    if (intervals >= static_cast<double>(kMaxFrequencies))
+      sweep.fail("step", "expected at most " + std::to_string(kMaxFrequencies) +
+                             " frequencies, got " + show(intervals + 1));
+    for (int i = 0; i <= static_cast<int>(intervals); ++i) f.push_back(start + i * step);
+    if (std::abs(f.back() - stop) < 1e-6 * step) f.back() = stop;
+  } else if (given) {
+    const std::string expected =
+        "a table { start, stop, step } or a non-empty array of positive numbers (Hz)";
+    f = *t.reals("frequencies", 0, expected, positive);
+    if (f.size() > kMaxFrequencies)
+      t.fail("frequencies", "expected at most " + std::to_string(kMaxFrequencies) +
+                                " frequencies, got " + std::to_string(f.size()));
+  }
+  if (const auto down = t.choice("direction", {"up", "down"}); down && *down == 1)
+    std::reverse(f.begin(), f.end());
+  return f;
+}
+
+SettleSpec read_settle(const Table& t) {
+  SettleSpec s;
+  const auto settle = t.sub("settle", "a table { min_periods, max_periods, tolerance }");
+  if (!settle) return s;
+  settle->allow_only(
+      {"min_periods", "max_periods", "tolerance", "average_periods", "samples_per_period"});
+  s.min_periods =
+      static_cast<int>(settle->integer("min_periods", 1, kMaxPeriods).value_or(s.min_periods));
+  s.max_periods =
+      static_cast<int>(settle->integer("max_periods", 1, kMaxPeriods).value_or(s.max_periods));
+  if (s.min_periods > s.max_periods) {
+    const bool min_given = settle->has("min_periods");
+    settle->fail(min_given ? "min_periods" : "max_periods",
+                 min_given ? "expected at most max_periods (" + std::to_string(s.max_periods) +
+                                 "), got " + std::to_string(s.min_periods)
+                           : "expected at least min_periods (" + std::to_string(s.min_periods) +
+                                 "), got " + std::to_string(s.max_periods));
+  }
+  s.tolerance = settle->real("tolerance", "a positive number", positive).value_or(s.tolerance);
+  s.average_periods = static_cast<int>(
+      settle->integer("average_periods", 1, kMaxPeriods).value_or(s.average_periods));
+  // A first harmonic needs more than two samples a period (Nyquist); 4 leaves a margin.
+  s.samples_per_period = static_cast<int>(
+      settle->integer("samples_per_period", 4, 1 << 20).value_or(s.samples_per_period));
+  return s;
+}
+
+ExcitationSpec read_excitation(const Table& t) {
+  ExcitationSpec e;
+  const ExcitationKind kinds[] = {ExcitationKind::stepped_sine, ExcitationKind::sine,
+                                  ExcitationKind::free_decay, ExcitationKind::prescribed};
+  e.kind = kinds[t.need_choice("kind", {"stepped_sine", "sine", "free_decay", "prescribed"},
+                               "in [excitation]")];
+  const std::string positive_s = "a positive number (s)";
+  if (e.kind == ExcitationKind::stepped_sine || e.kind == ExcitationKind::sine) {
+    const bool stepped = e.kind == ExcitationKind::stepped_sine;
+    const std::string why = stepped ? "for kind = \"stepped_sine\"" : "for kind = \"sine\"";
+    if (stepped)
+      t.allow_only({"kind", "input", "amplitude", "frequencies", "direction", "settle"}, " " + why);
+    else
+      t.allow_only({"kind", "input", "amplitude", "frequency", "duration"}, " " + why);
+    const ExcitationInput inputs[] = {ExcitationInput::force, ExcitationInput::base_displacement,
+                                      ExcitationInput::base_acceleration};
+    const char* units[] = {"N", "m", "m/s^2"};
+    const std::size_t input =
+        t.choice("input", {"force", "base_displacement", "base_acceleration"}).value_or(0);
+    e.input = inputs[input];
+    e.amplitude = t.need_real("amplitude", std::string("a positive number (") + units[input] + ")",
+                              positive, why);
+    if (stepped) {
+      if (!t.has("frequencies"))
+        t.missing("frequencies", "a table { start, stop, step } or an array (Hz)", why);
+      e.frequencies = read_frequencies(t);
+      e.settle = read_settle(t);
+    } else {
+      e.frequency = t.need_real("frequency", "a positive number (Hz)", positive, why);
+      e.duration = t.need_real("duration", positive_s, positive, why);
+    }
+  } else if (e.kind == ExcitationKind::free_decay) {
+    const std::string why = "for kind = \"free_decay\"";
+    t.allow_only({"kind", "initial_displacement", "duration"}, " " + why);
+    e.initial_displacement = t.need_real("initial_displacement", "a number (m)", any_value, why);
+    e.duration = t.need_real("duration", positive_s, positive, why);
+  } else {
+    const std::string why = "for kind = \"prescribed\"";
+    t.allow_only({"kind", "motion", "frequencies", "direction", "duration", "settle"}, " " + why);
+    const Table m = t.need_sub("motion", "a table { axis, amplitude, frequency }", why);
+    m.allow_only({"axis", "amplitude", "frequency"});
+    const std::string vector = "a non-zero vector of 3 numbers [x, y, z]";
+    if (!m.has("axis")) m.missing("axis", vector, "for a prescribed motion");
+    e.motion.axis = *m.direction("axis");
+    e.motion.amplitude =
+        m.need_real("amplitude", "a positive number (m)", positive, "for a prescribed motion");
+    const auto frequency = m.real("frequency", "a positive number (Hz)", positive);
+    if (frequency && t.has("frequencies"))
+      t.fail("frequencies", "give either motion.frequency or frequencies, not both");
+    if (!frequency && !t.has("frequencies"))
+      m.missing("frequency", "a positive number (Hz) (or excitation.frequencies for a sweep)", why);
+    e.frequencies = frequency ? std::vector<double>{*frequency} : read_frequencies(t);
+    e.motion.frequency = e.frequencies.front();
+    e.duration = t.real("duration", positive_s, positive).value_or(0);
+    e.settle = read_settle(t);
+  }
+  return e;
+}
+
+CouplingSpec read_coupling(const Table& t) {
+  CouplingSpec c;
+  t.allow_only({"scheme", "every", "tolerance", "max_iterations"});
+  const CouplingScheme schemes[] = {CouplingScheme::loose, CouplingScheme::interleaved,
+                                    CouplingScheme::tight};
+  if (const auto i = t.choice("scheme", {"loose", "interleaved", "tight"})) c.scheme = schemes[*i];
+  c.every = static_cast<int>(t.integer("every", 1, 1'000'000, "(DEM steps)").value_or(c.every));
+  c.tolerance = t.real("tolerance", "a positive number", positive).value_or(c.tolerance);
+  c.max_iterations =
+      static_cast<int>(t.integer("max_iterations", 1, 10'000).value_or(c.max_iterations));
+  return c;
+}
+
+SolverSpec read_solver(const Table& t) {
+  SolverSpec s;
+  t.allow_only({"dt", "dt_safety", "backend", "allow_unstable", "threads"});
+  const std::string dt_expected = "\"auto\" or a positive number (s)";
+  const toml::node* dt = t.node("dt");
+  if (dt && dt->is_string()) {
+    if (*t.text("dt") != "auto") t.wrong(*dt, "dt", dt_expected);
+  } else {
+    s.dt = t.real("dt", dt_expected, positive).value_or(0);  // 0 = auto
+  }
+  s.dt_safety = t.real("dt_safety", "a number in (0, 1]", fraction_range).value_or(s.dt_safety);
+  const Backend backends[] = {Backend::automatic, Backend::cpu, Backend::cuda};
+  if (const auto i = t.choice("backend", {"auto", "cpu", "cuda"})) s.backend = backends[*i];
+  s.allow_unstable = t.boolean("allow_unstable").value_or(s.allow_unstable);
+  s.threads = static_cast<int>(t.integer("threads", 0, 4096).value_or(s.threads));
+  return s;
+}
+
+OutputSpec read_output(const Table& t) {
+  OutputSpec o;
+  t.allow_only({"file", "every", "energy"});
+  o.file = t.text("file").value_or("");
+  if (t.has("file") && o.file.empty()) t.fail("file", "expected a file name, got \"\"");
+  o.every = t.real("every", "a non-negative number (s)", non_negative).value_or(o.every);
+  o.energy = t.boolean("energy").value_or(o.energy);
+  return o;
+}
+
+}  // namespace
+
+SourcePos Deck::where(const std::string& key) const {
+  std::string name = key;
+  while (!name.empty()) {
+    if (const auto found = positions.find(name); found != positions.end()) return found->second;
+    const std::size_t cut = name.find_last_of(".[");
+    if (cut == std::string::npos) break;
+    name.erase(cut);
+  }
+  return SourcePos{path, 0, 0};
+}
+
+Deck parse_deck(const std::string& text, const std::string& path) {
+  toml::table root;
+  try {
+    root = toml::parse(std::string_view(text), std::string_view(path));
+  } catch (const toml::parse_error& error) {
+    throw InputError(to_pos(path, error.source()), "", std::string(error.description()));
+  }
+  Deck deck;
+  deck.path = path;
+  deck.text = text;
+  record_positions(root, "", path, deck.positions);
+
+  const Table top(root, "", SourcePos{path, 0, 0});
+  top.allow_only({"title", "structure", "damper", "contact", "gravity", "excitation", "coupling",
+                  "solver", "output"});
+  deck.title = top.text("title").value_or("");
+  const std::string table = "a table";
+
+  // The excitation decides whether a structure may exist, so it is read first.
+  deck.excitation = read_excitation(top.need_sub("excitation", table, "in every deck"));
+  const bool prescribed = deck.excitation.kind == ExcitationKind::prescribed;
+  const auto structure = top.sub("structure", table);
+  if (prescribed && structure)
+    top.fail("structure",
+             "not allowed with excitation.kind = \"prescribed\" (the container "
+             "moves as prescribed; remove [structure])");
+  if (!prescribed && !structure)
+    top.missing("structure", table,
+                "unless excitation.kind = \"prescribed\" (the only kind without a structure)");
+  if (structure) deck.structure = read_structure(*structure);
+
+  if (const toml::node* node = root.get("damper")) {
+    const toml::array* array = node->as_array();
+    if (!array || !array->is_array_of_tables())
+      top.wrong(*node, "damper", "[[damper]] tables (an array of tables)");
+    std::int64_t total = 0;
+    for (std::size_t i = 0; i < array->size(); ++i) {
+      const std::string name = "damper[" + std::to_string(i) + "]";
+      const Table damper(*(*array)[i].as_table(), name, deck.where(name));
+      deck.dampers.push_back(read_damper(damper, deck.structure));
+      total += deck.dampers.back().particles.count;
+      if (total > kMaxParticles)
+        throw InputError(deck.where(name + ".particles.count"), name + ".particles.count",
+                         "expected at most " + std::to_string(kMaxParticles) +
+                             " particles in all dampers together, got " + std::to_string(total));
+    }
+  }
+  if (prescribed && deck.dampers.empty())
+    top.missing("damper", "a [[damper]] table", "for excitation.kind = \"prescribed\"");
+
+  deck.contact = read_contact(top.sub("contact", table), top, !deck.dampers.empty());
+  if (const auto gravity = top.sub("gravity", table)) {
+    gravity->allow_only({"vector"});
+    const std::string expected = "a vector of 3 numbers [x, y, z] (m/s^2)";
+    if (!gravity->has("vector")) gravity->missing("vector", expected, "in [gravity]");
+    const Vec3 g = *gravity->vec3("vector", expected, any_value);
+    if (norm(g) > 0) deck.gravity = g;  // a zero vector means no gravity
+  }
+  if (const auto coupling = top.sub("coupling", table)) deck.coupling = read_coupling(*coupling);
+  if (const auto solver = top.sub("solver", table)) deck.solver = read_solver(*solver);
+  if (const auto output = top.sub("output", table)) deck.output = read_output(*output);
+  return deck;
+}
+
+Deck load_deck(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw InputError(SourcePos{path, 0, 0}, "", "cannot open the deck file");
+  std::ostringstream text;
+  text << file.rdbuf();
+  return parse_deck(text.str(), path);
+}
+
+}  // namespace pdsim

@@ -38,6 +38,9 @@ CoupledSystem::CoupledSystem(const Deck& deck, const Scene& scene)
       every_(deck.coupling.every) {
   if (deck.structure.kind != StructureKind::none) {
     structure_ = build_structure(deck);
+    // At rest until configure() fixes the step; holds the state restore() brings back.
+    integrator_ = make_integrator(structure_, integrator_kind_, 1e-4);
+    integrator_->q = integrator_->v = Eigen::VectorXd::Zero(structure_.size());
   } else {
     prescribed_ = deck.excitation.motion;
     every_ = 1;
@@ -56,8 +59,7 @@ void CoupledSystem::configure(double dt, const Drive& drive) {
   dt_ = dt;
   drive_ = drive;
   if (structure_.size() > 0) {
-    Eigen::VectorXd q = Eigen::VectorXd::Zero(structure_.size()), v = q;
-    if (integrator_) q = integrator_->q, v = integrator_->v;
+    const Eigen::VectorXd q = integrator_->q, v = integrator_->v;
     integrator_ = make_integrator(structure_, integrator_kind_, dt * every_);
     integrator_->q = q;
     integrator_->v = v;

@@ -37,6 +37,9 @@ int main(int argc, char** argv) {
   run->add_flag("--resume", options.resume, "continue an interrupted run from its checkpoint");
   run->add_flag("--force", options.force, "overwrite an existing output file");
   run->add_flag("--quiet", options.quiet, "no progress lines");
+  run->add_option("--stop-after", options.stop_after,
+                  "stop after N frequencies, keeping the checkpoint for --resume")
+      ->check(CLI::PositiveNumber);
 
   auto* check = app.add_subcommand("check", "validate a deck and print derived quantities");
   check->add_option("deck", deck_path, "input deck (TOML)")->required();

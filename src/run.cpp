@@ -82,8 +82,9 @@ class Runner {
     work_in_ = partial.checkpoint.at("tallies").at(2);
   }
 
-  // Runs what is left; `checkpoint` is called after every finished frequency.
-  Results run(const std::function<void(const Results&)>& checkpoint) {
+  // Runs what is left; `checkpoint` is called after every finished frequency. With
+  // stop_after > 0, returns after that many frequencies (stopped() tells).
+  Results run(const std::function<void(const Results&)>& checkpoint, int stop_after = 0) {
     const auto start = Clock::now();
     const ExcitationSpec& x = deck_.excitation;
     if (x.kind == ExcitationKind::free_decay) {
@@ -104,6 +105,11 @@ class Runner {
         snapshot.checkpoint["next_sample"] = {next_sample_};
         snapshot.checkpoint["tallies"] = {dissipated_n_, dissipated_t_, work_in_};
         checkpoint(snapshot);
+        if (--stop_after == 0) {
+          stopped_ = true;
+          ++next_;
+          break;
+        }
       }
     }
     progress_.finish();
@@ -113,6 +119,8 @@ class Runner {
   }
 
   double wall_time() const { return wall_time_; }
+  bool stopped() const { return stopped_; }
+  std::size_t finished() const { return next_; }
 
  private:
   double first_mode() const {
@@ -241,6 +249,7 @@ class Runner {
   Results results_;
   std::vector<double> frequencies_;
   std::size_t next_ = 0;
+  bool stopped_ = false;
   double dt_ = 0, sample_every_ = 0, next_sample_ = 0, wall_time_ = 0;
   double dissipated_n_ = 0, dissipated_t_ = 0, work_in_ = 0;
 };
@@ -306,11 +315,13 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   auto previous = std::signal(SIGINT, on_interrupt);
   Results results;
   try {
-    results = runner.run([&](const Results& snapshot) {
-      Results r = snapshot;
-      r.meta_text["deck"] = deck.text;
-      write_results(path, r, false);
-    });
+    results = runner.run(
+        [&](const Results& snapshot) {
+          Results r = snapshot;
+          r.meta_text["deck"] = deck.text;
+          write_results(path, r, false);
+        },
+        options.stop_after);
   } catch (const SimulationError& e) {
     std::signal(SIGINT, previous);
     if (g_interrupted)
@@ -319,6 +330,9 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
     throw;
   }
   std::signal(SIGINT, previous);
+  if (runner.stopped())
+    return {partial, "stopped after " + std::to_string(runner.finished()) +
+                         " frequencies as asked; continue with --resume"};
   write_results(path, results, true);
   return {path, summary_line(results, path)};
 }

@@ -18,6 +18,7 @@ struct RunOptions {
   bool quiet = false;  // no progress lines
   int threads = 0;
   std::optional<Backend> backend;
+  int stop_after = 0;  // stop (checkpoint kept) after this many frequencies of this session
 };
 
 struct RunReport {

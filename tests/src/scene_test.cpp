@@ -1,0 +1,59 @@
+// Scene derivation: the cross-checks that need derived physics, and the time-step formulas.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <string>
+
+#include "src/scene.hpp"
+
+using namespace pdsim;
+
+namespace {
+
+std::string error_of(const std::string& deck_file) {
+  try {
+    build_scene(load_deck(std::string(PDSIM_TEST_DIR) + "/decks/" + deck_file));
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST_CASE("an explicit dt above the stability limit is refused at its key") {
+  const std::string e = error_of("bad_dt_above_limit.toml");
+  CHECK(e.find("bad_dt_above_limit.toml:17:6: 'solver.dt'") != std::string::npos);
+  CHECK(e.find("exceeds the stability limit") != std::string::npos);
+  CHECK(e.find("allow_unstable") != std::string::npos);
+}
+
+TEST_CASE("particles that do not fit are refused with the count the container holds") {
+  const std::string e = error_of("bad_particles_do_not_fit.toml");
+  CHECK(e.find("bad_particles_do_not_fit.toml:7:") != std::string::npos);
+  // 0.02 m box, lattice spacing 1.02 x 5 mm, first centre at 2.55 mm: 3 per row, 27 in all.
+  CHECK(e.find("holds only 27 particles") != std::string::npos);
+}
+
+TEST_CASE("Rayleigh time and linear contact time against hand-computed values") {
+  // Steel, r = 2.5 mm: G = 2e11 / 2.6; T_R = pi r sqrt(rho/G) / (0.1631 nu + 0.8766).
+  const double shear = 2e11 / 2.6;
+  const double expected = kPi * 0.0025 * std::sqrt(7800 / shear) / (0.1631 * 0.3 + 0.8766);
+  CHECK(rayleigh_time(0.0025, 7800, 2e11, 0.3) == doctest::Approx(expected).epsilon(1e-14));
+  CHECK(expected == doctest::Approx(2.7022e-6).epsilon(1e-4));
+  // Undamped linear contact (e = 1): t_c = pi sqrt(m*/k).
+  CHECK(linear_contact_time(1e5, 1e-3, 1.0) == doctest::Approx(kPi * 1e-4).epsilon(1e-14));
+  // e = 0.5: zeta = -ln e / sqrt(pi^2 + ln^2 e), t_c = pi / (w0 sqrt(1 - zeta^2)).
+  const double zeta = std::log(2.0) / std::sqrt(kPi * kPi + std::log(2.0) * std::log(2.0));
+  CHECK(linear_contact_time(1e5, 1e-3, 0.5) ==
+        doctest::Approx(kPi * 1e-4 / std::sqrt(1 - zeta * zeta)).epsilon(1e-12));
+}
+
+TEST_CASE("auto dt is a fixed fraction of the Rayleigh time and check names the variant") {
+  const Deck d = load_deck(std::string(PDSIM_TEST_DIR) + "/../examples/shaken_box.toml");
+  const Scene s = build_scene(d);
+  CHECK(s.dt == doctest::Approx(0.15 * rayleigh_time(0.0025, 7800, 2e11, 0.3)).epsilon(1e-12));
+  REQUIRE(s.dampers.size() == 1);
+  CHECK(variant_name(s.dampers[0].engine) == "hertz/history/gravity/mono/box");
+  CHECK(s.dampers[0].engine.particles.size() == 196);
+}

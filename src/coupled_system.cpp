@@ -1,6 +1,8 @@
 #include "src/coupled_system.hpp"
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
 
 namespace pdsim {
 
@@ -96,11 +98,14 @@ ContainerKinematics CoupledSystem::container(int damper, double t, double u, dou
   return {u * direction_, u_dot * direction_};
 }
 
-double CoupledSystem::structure_energy() const {
+double CoupledSystem::structure_kinetic() const {
   if (!integrator_) return 0.0;
-  const Eigen::VectorXd& q = integrator_->q;
-  const Eigen::VectorXd& v = integrator_->v;
-  return 0.5 * v.dot(structure_.mass * v) + 0.5 * q.dot(structure_.stiffness * q);
+  return 0.5 * integrator_->v.dot(structure_.mass * integrator_->v);
+}
+
+double CoupledSystem::structure_elastic() const {
+  if (!integrator_) return 0.0;
+  return 0.5 * integrator_->q.dot(structure_.stiffness * integrator_->q);
 }
 
 // Runs one DEM step of every damper with the container at displacement u_k(t) + lead * u_dot_k,
@@ -114,6 +119,7 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
     const double u_dot = drive_.base_velocity(t) + row * integrator_->v;
     const ContainerKinematics kin = container(static_cast<int>(k), t, u + lead * u_dot, u_dot);
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
+    if (totals.flags) check(totals, k, t, kin.position);
     force_along[k] = dot(totals.wall_force, direction_);
     power -= dot(totals.wall_force, kin.velocity);
     last_.dissipated_normal += totals.dissipated_normal;
@@ -144,6 +150,8 @@ void CoupledSystem::step_prescribed() {
   for (auto& e : engines_) {
     const ContainerKinematics kin{u * m.axis, u_dot * m.axis};
     const StepTotals& totals = e->compute(kin, dt_);
+    if (totals.flags)
+      check(totals, static_cast<std::size_t>(&e - engines_.data()), time_, kin.position);
     e->accept();
     last_.damper_force += dot(totals.wall_force, m.axis);
     last_.power_in -= dot(totals.wall_force, kin.velocity);
@@ -243,6 +251,50 @@ void CoupledSystem::step_tight() {
   pending_force_ = force;
   pending_record_ = computed;
   time_ = t0 + dt_;
+}
+
+// Blow-up guard: a non-finite value or a particle outside its container stops the run with
+// the step, time and first offending particle (its state at the end of the failing step).
+void CoupledSystem::check(const StepTotals& totals, std::size_t damper, double t,
+                          Vec3 container_position) {
+  engines_[damper]->accept();  // show the state the step produced
+  const Vec3 h = scene_.dampers[damper].engine.geometry.half_size;
+  std::ostringstream s;
+  s.precision(6);
+  s << "blow-up at t = " << t << " s (step " << std::llround(t / dt_) << ", dt " << dt_
+    << " s), damper " << damper << ": "
+    << ((totals.flags & kNonFinite) ? "non-finite particle state"
+                                    : "a particle left its container");
+  const auto particles = engines_[damper]->particles();
+  for (std::size_t i = 0; i < particles.size(); ++i) {
+    const ParticleState& p = particles[i];
+    const Vec3 local = p.position - container_position;
+    const bool finite = std::isfinite(norm(p.position) + norm(p.velocity));
+    if (!finite || std::fabs(local.x) > h.x || std::fabs(local.y) > h.y ||
+        std::fabs(local.z) > h.z) {
+      s << "; first particle " << i << " at (" << local.x << ", " << local.y << ", " << local.z
+        << ") m from the container centre, speed " << norm(p.velocity) << " m/s";
+      break;
+    }
+  }
+  s << ". Typical causes: dt too large for the contact stiffness (see pdsim check), or loose "
+       "coupling with particles heavy against the structure (use interleaved or tight)";
+  throw SimulationError(s.str());
+}
+
+void CoupledSystem::dump(const std::string& path) const {
+  std::ofstream out(path);
+  out.precision(17);
+  out << "damper,id,x,y,z,vx,vy,vz,wx,wy,wz\n";
+  for (std::size_t k = 0; k < engines_.size(); ++k) {
+    const auto particles = engines_[k]->particles();
+    for (std::size_t i = 0; i < particles.size(); ++i) {
+      const ParticleState& p = particles[i];
+      out << k << ',' << i << ',' << p.position.x << ',' << p.position.y << ',' << p.position.z
+          << ',' << p.velocity.x << ',' << p.velocity.y << ',' << p.velocity.z << ',' << p.spin.x
+          << ',' << p.spin.y << ',' << p.spin.z << '\n';
+    }
+  }
 }
 
 StateArrays CoupledSystem::save() const {

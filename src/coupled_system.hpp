@@ -53,11 +53,15 @@ class CoupledSystem {
   const StepRecord& last() const { return last_; }
   bool has_structure() const { return static_cast<bool>(integrator_); }
   const LinearStructure& structure() const { return structure_; }
-  double structure_energy() const;  // J, kinetic + elastic of the structure
+  double structure_kinetic() const;  // J
+  double structure_elastic() const;  // J
   long long particle_steps() const { return particle_steps_; }
   int particle_count() const;
   const std::vector<std::unique_ptr<DemEngine>>& engines() const { return engines_; }
   void set_initial_displacement(double x0);  // free decay: displace the response DOF statically
+
+  // Particle states of every damper as CSV (damper, id, x, y, z, vx, vy, vz, wx, wy, wz).
+  void dump(const std::string& path) const;
 
   StateArrays save() const;
   void restore(const StateArrays& state);
@@ -70,6 +74,7 @@ class CoupledSystem {
   void step_explicit(bool impulse);
   void step_tight();
   double compute_dampers(double t, double lead, std::vector<double>& force_along);
+  void check(const StepTotals& totals, std::size_t damper, double t, Vec3 container_position);
 
   const Scene& scene_;
   CouplingSpec coupling_;

@@ -120,6 +120,7 @@ class Runner {
 
   double wall_time() const { return wall_time_; }
   bool stopped() const { return stopped_; }
+  void dump(const std::string& path) const { system_.dump(path); }
   std::size_t finished() const { return next_; }
 
  private:
@@ -159,9 +160,8 @@ class Runner {
       if (results_.energy) {
         EnergySeries& e = *results_.energy;
         e.time.push_back(r.time);
-        const double structure = system_.structure_energy();
-        e.kinetic.push_back(r.particle_kinetic);
-        e.elastic.push_back(structure);
+        e.kinetic.push_back(r.particle_kinetic + system_.structure_kinetic());
+        e.elastic.push_back(system_.structure_elastic());
         e.dissipated_normal.push_back(dissipated_n_);
         e.dissipated_tangential.push_back(dissipated_t_);
         e.work_in.push_back(work_in_);
@@ -327,7 +327,9 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
     if (g_interrupted)
       throw SimulationError(std::string("interrupted; finished frequencies are in ") + partial +
                             ", continue with --resume");
-    throw;
+    const std::string dump = path + ".blowup.csv";
+    runner.dump(dump);
+    throw SimulationError(std::string(e.what()) + "\nparticle states written to " + dump);
   }
   std::signal(SIGINT, previous);
   if (runner.stopped())

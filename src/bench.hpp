@@ -14,8 +14,9 @@ namespace pdsim {
 struct BenchOptions {
   std::vector<int> particles{196, 8000};
   std::vector<int> threads{1, 2};
-  long steps = 0;        // 0 = about 2e7 particle-steps per scene
-  bool effects = false;  // also time each optional effect against the full model
+  long steps = 0;         // 0 = about 2e7 particle-steps per scene
+  bool effects = false;   // also time each optional effect against the full model
+  bool coupling = false;  // time one structure <-> particle exchange per scheme and integrator
   std::string backend = "cpu";
 };
 

@@ -49,6 +49,9 @@ CoupledSystem::CoupledSystem(const Deck& deck, const Scene& scene)
   }
   for (const DamperScene& d : scene.dampers) engines_.push_back(make_engine(d.engine));
   pending_force_.assign(engines_.size(), 0.0);
+  force_ = force_sum_ = guess_ = pending_force_;
+  const int n = structure_.size();
+  load_ = damper_load_ = q_start_ = v_start_ = Eigen::VectorXd::Zero(n);
 }
 
 int CoupledSystem::particle_count() const {
@@ -87,9 +90,11 @@ double CoupledSystem::response(const Eigen::VectorXd& q) const {
   return structure_.response * q;
 }
 
-Eigen::VectorXd CoupledSystem::external_load(double t) const {
-  if (drive_.input == ExcitationInput::force) return drive_.force(t) * structure_.force_shape;
-  return -drive_.base_acceleration(t) * (structure_.mass * structure_.base_influence);
+void CoupledSystem::external_load(double t, Eigen::VectorXd& load) const {
+  if (drive_.input == ExcitationInput::force)
+    load.noalias() = drive_.force(t) * structure_.force_shape;
+  else
+    load.noalias() = -drive_.base_acceleration(t) * (structure_.mass * structure_.base_influence);
 }
 
 ContainerKinematics CoupledSystem::container(int damper, double t, double u, double u_dot) const {
@@ -114,9 +119,9 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
   double power = 0;
   last_.dissipated_normal = last_.dissipated_tangential = last_.particle_kinetic = 0;
   for (std::size_t k = 0; k < engines_.size(); ++k) {
-    const Eigen::RowVectorXd row = structure_.attachment_translation.row(static_cast<int>(k));
-    const double u = drive_.base_displacement(t) + row * integrator_->q;
-    const double u_dot = drive_.base_velocity(t) + row * integrator_->v;
+    const auto row = structure_.attachment_translation.row(static_cast<int>(k));
+    const double u = drive_.base_displacement(t) + row.dot(integrator_->q);
+    const double u_dot = drive_.base_velocity(t) + row.dot(integrator_->v);
     const ContainerKinematics kin = container(static_cast<int>(k), t, u + lead * u_dot, u_dot);
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
     if (totals.flags) check(totals, k, t, kin.position);
@@ -165,51 +170,52 @@ void CoupledSystem::step_prescribed() {
 
 void CoupledSystem::step_explicit(bool impulse) {
   const double t0 = time_;
-  const int n = structure_.size();
   last_.time = t0;
   last_.displacement = response(integrator_->q);
   last_.velocity = response(integrator_->v);
   // The DEM sub-steps see the container extrapolated linearly over the coupling interval.
-  std::vector<double> force_sum(engines_.size(), 0.0), force(engines_.size(), 0.0);
+  std::fill(force_sum_.begin(), force_sum_.end(), 0.0);
   double power = 0, dissipated_n = 0, dissipated_t = 0;
   for (int s = 0; s < every_; ++s) {
-    power += compute_dampers(t0 + s * dt_, s * dt_, force);
+    power += compute_dampers(t0 + s * dt_, s * dt_, force_);
     for (auto& e : engines_) e->accept();
-    for (std::size_t k = 0; k < force.size(); ++k) force_sum[k] += force[k];
+    for (std::size_t k = 0; k < force_.size(); ++k) force_sum_[k] += force_[k];
     dissipated_n += last_.dissipated_normal;
     dissipated_t += last_.dissipated_tangential;
   }
   const double h = every_ * dt_;
-  Eigen::VectorXd damper_load = Eigen::VectorXd::Zero(n);
+  damper_load_.setZero();
   double total_force = 0;
-  for (std::size_t k = 0; k < force_sum.size(); ++k) {
-    const double mean = force_sum[k] / every_;
-    damper_load += mean * structure_.attachment_translation.row(static_cast<int>(k)).transpose();
+  for (std::size_t k = 0; k < force_sum_.size(); ++k) {
+    const double mean = force_sum_[k] / every_;
+    damper_load_ += mean * structure_.attachment_translation.row(static_cast<int>(k)).transpose();
     total_force += mean;
   }
-  const Eigen::VectorXd q_old = integrator_->q;
-  const Eigen::VectorXd external = external_load(t0 + 0.5 * h);
+  q_start_ = integrator_->q;
+  external_load(t0 + 0.5 * h, load_);
   if (impulse) {
-    integrator_->kick(h * damper_load);
-    integrator_->step(h, external);
+    damper_load_ *= h;  // impulse over the interval
+    integrator_->kick(damper_load_);
+    integrator_->step(h, load_);
   } else {
-    integrator_->step(h, external + damper_load);
+    load_ += damper_load_;
+    integrator_->step(h, load_);
+    load_ -= damper_load_;
   }
   last_.damper_force = total_force;
   last_.power_in = engines_.empty() ? 0.0 : power / every_;
   last_.dissipated_normal = dissipated_n;
   last_.dissipated_tangential = dissipated_t;
-  last_.work_external = external.dot(integrator_->q - q_old);
+  last_.work_external = load_.dot(integrator_->q - q_start_);
   time_ = t0 + h;
 }
 
 void CoupledSystem::step_tight() {
-  std::vector<double> force(engines_.size(), 0.0);
   if (!pending_) {
     // Prime: the DEM step from the current particle state with the container at t_n.
     last_.time = time_;
-    const double power = compute_dampers(time_, 0.0, force);
-    pending_force_ = force;
+    const double power = compute_dampers(time_, 0.0, force_);
+    pending_force_ = force_;
     pending_record_ = last_;
     pending_record_.power_in = power;
     pending_ = true;
@@ -223,32 +229,33 @@ void CoupledSystem::step_tight() {
   for (double f : pending_force_) record.damper_force += f;
   for (auto& e : engines_) e->accept();  // particles t_n -> t_{n+1}
 
-  const Eigen::VectorXd q0 = integrator_->q, v0 = integrator_->v;
-  const Eigen::VectorXd external = external_load(t0 + 0.5 * dt_);
-  std::vector<double> guess = pending_force_;
+  q_start_ = integrator_->q;
+  v_start_ = integrator_->v;
+  external_load(t0 + 0.5 * dt_, load_);
+  guess_ = pending_force_;
   double power = 0;
   for (int iteration = 0; iteration < coupling_.max_iterations; ++iteration) {
-    integrator_->q = q0;
-    integrator_->v = v0;
-    Eigen::VectorXd load = external;
-    for (std::size_t k = 0; k < guess.size(); ++k)
-      load += 0.5 * (pending_force_[k] + guess[k]) *
-              structure_.attachment_translation.row(static_cast<int>(k)).transpose();
-    integrator_->step(dt_, load);
-    power = compute_dampers(t0 + dt_, 0.0, force);
+    integrator_->q = q_start_;
+    integrator_->v = v_start_;
+    damper_load_ = load_;
+    for (std::size_t k = 0; k < guess_.size(); ++k)
+      damper_load_ += 0.5 * (pending_force_[k] + guess_[k]) *
+                      structure_.attachment_translation.row(static_cast<int>(k)).transpose();
+    integrator_->step(dt_, damper_load_);
+    power = compute_dampers(t0 + dt_, 0.0, force_);
     double change = 0, scale = 1e-12;
-    for (std::size_t k = 0; k < force.size(); ++k) {
-      change = std::max(change, std::fabs(force[k] - guess[k]));
-      scale = std::max(scale, std::max(std::fabs(force[k]), std::fabs(pending_force_[k])));
+    for (std::size_t k = 0; k < force_.size(); ++k) {
+      change = std::max(change, std::fabs(force_[k] - guess_[k]));
+      scale = std::max(scale, std::max(std::fabs(force_[k]), std::fabs(pending_force_[k])));
     }
-    guess = force;
+    guess_ = force_;
     if (change <= coupling_.tolerance * scale) break;
   }
-  record.work_external = external.dot(integrator_->q - q0);
+  record.work_external = load_.dot(integrator_->q - q_start_);
   StepRecord computed = last_;  // tallies of the step just computed, reported once accepted
   computed.power_in = power;
   last_ = record;
-  pending_force_ = force;
+  pending_force_ = force_;
   pending_record_ = computed;
   time_ = t0 + dt_;
 }

@@ -68,7 +68,8 @@ class CoupledSystem {
 
  private:
   ContainerKinematics container(int damper, double t, double u, double u_dot) const;
-  Eigen::VectorXd external_load(double t) const;
+  // Generalised external load at t, written into `load` (no allocation in the step loop).
+  void external_load(double t, Eigen::VectorXd& load) const;
   double response(const Eigen::VectorXd& q) const;
   void step_prescribed();
   void step_explicit(bool impulse);
@@ -91,6 +92,9 @@ class CoupledSystem {
   std::vector<double> pending_force_;
   StepRecord last_, pending_record_;
   long long particle_steps_ = 0;
+  // Work buffers of the step loop, sized once.
+  std::vector<double> force_, force_sum_, guess_;
+  Eigen::VectorXd load_, damper_load_, q_start_, v_start_;
 };
 
 }  // namespace pdsim

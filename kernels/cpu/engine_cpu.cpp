@@ -50,6 +50,14 @@ int neighbour_bound(double r_min, double r_max, double skin) {
   return static_cast<int>(std::ceil(0.7405 * std::pow(reach / r_min, 3)));
 }
 
+// Inverse mass and inverse moment of inertia (solid sphere, I = 2/5 m r^2) of one ball: one
+// expression for construction and restore, so that a restored run continues bitwise.
+void mass_properties(double radius, double density, double& inv_mass, double& inv_inertia) {
+  const double mass = density * 4.0 / 3.0 * kPi * radius * radius * radius;
+  inv_mass = 1.0 / mass;
+  inv_inertia = 1.0 / (0.4 * mass * radius * radius);
+}
+
 template <class V>
 class CpuEngine final : public DemEngine {
  public:
@@ -66,12 +74,8 @@ class CpuEngine final : public DemEngine {
     radius_ = c.radius;
     inv_mass_.resize(n);
     inv_inertia_.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const double r = radius_[i];
-      const double mass = c.density * 4.0 / 3.0 * kPi * r * r * r;
-      inv_mass_[i] = 1.0 / mass;
-      inv_inertia_[i] = 1.0 / (0.4 * mass * r * r);
-    }
+    for (std::size_t i = 0; i < n; ++i)
+      mass_properties(radius_[i], c.density, inv_mass_[i], inv_inertia_[i]);
     id_.resize(n);
     std::iota(id_.begin(), id_.end(), 0);
     set_particles(c.particles);
@@ -82,12 +86,18 @@ class CpuEngine final : public DemEngine {
     ParticleStepArgs a = args(container, dt);
     const int blocks = (count_ + kBlock - 1) / kBlock;
     block_totals_.assign(static_cast<std::size_t>(blocks), StepTotals{});
-#pragma omp parallel for schedule(static) num_threads(threads_) if (blocks > 1)
-    for (int b = 0; b < blocks; ++b) {
+    auto run_block = [&](int b) {
       StepTotals sum;
       const int end = std::min(count_, (b + 1) * kBlock);
       for (int i = b * kBlock; i < end; ++i) accumulate(sum, step_particle<V>(i, a));
       block_totals_[static_cast<std::size_t>(b)] = sum;
+    };
+    if (blocks == 1 || threads_ == 1) {
+      // Small scenes: a parallel region would cost more than it saves.
+      for (int b = 0; b < blocks; ++b) run_block(b);
+    } else {
+#pragma omp parallel for schedule(static) num_threads(threads_)
+      for (int b = 0; b < blocks; ++b) run_block(b);
     }
     totals_ = StepTotals{};
     for (const auto& t : block_totals_) accumulate(totals_, t);
@@ -194,11 +204,8 @@ class CpuEngine final : public DemEngine {
     auto to_int = [](const std::vector<double>& a, auto& out) { out.assign(a.begin(), a.end()); };
     to_int(get("id"), id_);
     radius_ = get("radius");
-    for (std::size_t i = 0; i < radius_.size(); ++i) {
-      const double mass = config_.density * 4.0 / 3.0 * kPi * std::pow(radius_[i], 3);
-      inv_mass_[i] = 1.0 / mass;
-      inv_inertia_[i] = 1.0 / (0.4 * mass * radius_[i] * radius_[i]);
-    }
+    for (std::size_t i = 0; i < radius_.size(); ++i)
+      mass_properties(radius_[i], config_.density, inv_mass_[i], inv_inertia_[i]);
     HistoryBuffer& h = history_[current_];
     h.neighbour = get("history");
     h.wall = get("wall_history");

@@ -44,16 +44,29 @@ class PeriodTracker {
 
   int periods() const { return static_cast<int>(periods_.size()); }
 
-  // Relative change of the displacement (or force) harmonic over the last two period pairs.
+  // Converged when the estimated distance to the steady state is below `tolerance` of the
+  // harmonic, for two consecutive periods. A linear transient makes the harmonic approach its
+  // limit geometrically, H_k = H + c rho^k, so the distance left is |dH_k rho / (1 - rho)| with
+  // rho = dH_k / dH_{k-1} (Aitken): with light damping this is many times the change per period,
+  // which alone would stop early. When rho says no geometric decay (noise of a chaotic damper,
+  // |rho| >= 1) the change per period is the estimate.
   bool converged(double tolerance, int min_periods, bool of_force = false) const {
     const int n = periods();
-    if (n < std::max(min_periods, 3)) return false;
-    for (int k = n - 2; k < n; ++k) {
+    if (n < std::max(min_periods, 4)) return false;
+    auto harmonic = [&](int k) {
       const PeriodSummary& p = periods_[static_cast<std::size_t>(k)];
-      const PeriodSummary& q = periods_[static_cast<std::size_t>(k - 1)];
-      const auto now = of_force ? p.force : p.displacement;
-      const auto before = of_force ? q.force : q.displacement;
-      if (std::abs(now - before) > tolerance * std::max(std::abs(now), 1e-300)) return false;
+      return of_force ? p.force : p.displacement;
+    };
+    for (int k = n - 2; k < n; ++k) {
+      const std::complex<double> change = harmonic(k) - harmonic(k - 1);
+      const std::complex<double> before = harmonic(k - 1) - harmonic(k - 2);
+      double factor = 1.0;
+      if (std::abs(before) > 0) {
+        const std::complex<double> rho = change / before;
+        if (std::abs(rho) < 1.0) factor = std::max(1.0, std::abs(rho / (1.0 - rho)));
+      }
+      if (factor * std::abs(change) > tolerance * std::max(std::abs(harmonic(k)), 1e-300))
+        return false;
     }
     return true;
   }

@@ -1,0 +1,152 @@
+// Normal contact laws (kernels/contact_normal.hpp) through the engine: head-on binary and wall
+// impacts against the restitution and contact-time formulas of the brief (section 2).
+//
+// The linear dashpot force jumps to c v at the first and last step of a contact, so the
+// measured restitution carries an O(dt/tc) error (about 2e-2 x e at dt = tc/100, ten times less
+// at tc/1000); the Tsuji dashpot vanishes with the overlap and converges faster (its continuous
+// solution returns the deck e to 1e-7, by RK4 integration of the brief's formula). Each case runs
+// at both resolutions: the coarse bound is what production steps give, the fine bound shows
+// convergence to the exact value. A wrong damping formula (e.g. sqrt(5/6) missing in Tsuji's
+// form, or ln^2 e missing under the root) moves e by 2e-2 to 3e-2 and fails both.
+#include "kernels/contact_normal.hpp"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+
+#include "tests/kernels/dem_fixtures.hpp"
+
+namespace pdsim {
+namespace {
+
+using namespace fixtures;
+
+constexpr double kRadius = 2.5e-3;    // m, the brief's 5 mm steel ball
+constexpr double kStiffness = 1.0e5;  // N/m, linear law
+constexpr double kHalfBox = 0.05;     // m, walls far from the pair
+
+// Surface gap before the impact: at most 0.37 R and at most 371.83 steps of approach, so that
+// slow impacts at fine steps stay cheap and the contact starts at an arbitrary phase of a step.
+double initial_gap(double speed, double dt_s) {
+  return std::fmin(0.37 * kRadius, 371.83 * speed * dt_s);
+}
+
+struct Impact {
+  double restitution;     // -v_rel_after / v_rel_before along the normal
+  double contact_time;    // s
+  double momentum_error;  // |p_after - p_before| / |p_before| (pair only)
+  double energy_balance;  // (kinetic loss - sum of dissipated_normal) / kinetic loss
+};
+
+double kinetic(const std::vector<ParticleState>& p, double mass) {
+  double sum = 0;
+  for (const auto& q : p) sum += 0.5 * mass * dot(q.velocity, q.velocity);
+  return sum;
+}
+
+Impact measured(const ImpactRecord& r, double restitution, double mass, double v_rel_after,
+                double v_rel_before) {
+  Impact out{-v_rel_after / v_rel_before, r.contact_time, 0, 0};
+  const double loss = kinetic(r.before, mass) - kinetic(r.after, mass);
+  if (restitution < 1) out.energy_balance = (loss - r.dissipated_normal) / loss;
+  return out;
+}
+
+// Sphere A at `speed` along +x hits sphere B at rest, far from the walls.
+Impact pair_impact(NormalModel normal, const ContactParams& contact, double restitution,
+                   double speed, double dt_s) {
+  EngineConfig c =
+      steel_box({kHalfBox, kHalfBox, kHalfBox}, normal, TangentialModel::none, contact, dt_s);
+  const double gap = initial_gap(speed, dt_s);
+  add_particle(c, kRadius, {-kRadius - 0.5 * gap, 0, 0}, {speed, 0, 0});
+  add_particle(c, kRadius, {kRadius + 0.5 * gap, 0, 0}, {});
+  auto engine = make_engine(c);
+  const auto overlap = [](const std::vector<ParticleState>& p) {
+    return 2 * kRadius - norm(p[1].position - p[0].position);
+  };
+  const ImpactRecord r = follow_impact(*engine, dt_s, overlap, 100000);
+  const double mass = sphere_mass(kRadius, kSteelDensity);
+  Impact out = measured(r, restitution, mass, r.after[0].velocity.x - r.after[1].velocity.x,
+                        r.before[0].velocity.x - r.before[1].velocity.x);
+  const Vec3 p_before = mass * (r.before[0].velocity + r.before[1].velocity);
+  const Vec3 p_after = mass * (r.after[0].velocity + r.after[1].velocity);
+  out.momentum_error = norm(p_after - p_before) / norm(p_before);
+  return out;
+}
+
+// Sphere falls at `speed` onto the floor z = -kHalfBox (no gravity).
+Impact wall_impact(NormalModel normal, const ContactParams& contact, double restitution,
+                   double speed, double dt_s) {
+  EngineConfig c =
+      steel_box({kHalfBox, kHalfBox, kHalfBox}, normal, TangentialModel::none, contact, dt_s);
+  const double gap = initial_gap(speed, dt_s);
+  add_particle(c, kRadius, {0.01, -0.02, -kHalfBox + kRadius + gap}, {0, 0, -speed});
+  auto engine = make_engine(c);
+  const auto overlap = [](const std::vector<ParticleState>& p) {
+    return kRadius - (p[0].position.z + kHalfBox);
+  };
+  const ImpactRecord r = follow_impact(*engine, dt_s, overlap, 100000);
+  return measured(r, restitution, sphere_mass(kRadius, kSteelDensity), r.after[0].velocity.z,
+                  r.before[0].velocity.z);
+}
+
+struct Resolution {
+  double steps_per_contact;
+  double restitution_tolerance;   // absolute
+  double contact_time_tolerance;  // relative
+  double energy_tolerance;        // relative
+};
+
+TEST_CASE("linear law: restitution and contact time of binary and wall impacts") {
+  const double mass = sphere_mass(kRadius, kSteelDensity);
+  for (const Resolution res :
+       {Resolution{100, 1e-2, 1e-2, 2e-2}, Resolution{1000, 1e-3, 1e-3, 2e-3}})
+    for (bool wall : {false, true})
+      for (double e : {0.3, 0.6, 0.9})
+        for (double speed : {0.1, 1.0, 5.0}) {
+          CAPTURE(res.steps_per_contact);
+          CAPTURE(wall);
+          CAPTURE(e);
+          CAPTURE(speed);
+          const double mass_eff = wall ? mass : 0.5 * mass;
+          const double tc = linear_contact_time(kStiffness, mass_eff, e);
+          const double dt = tc / res.steps_per_contact;
+          const ContactParams contact = linear_contact(kStiffness, e, 0);
+          const Impact r = wall ? wall_impact(NormalModel::linear, contact, e, speed, dt)
+                                : pair_impact(NormalModel::linear, contact, e, speed, dt);
+          CHECK(std::fabs(r.restitution - e) < res.restitution_tolerance);
+          CHECK(std::fabs(r.contact_time / tc - 1) < res.contact_time_tolerance);
+          CHECK(std::fabs(r.energy_balance) < res.energy_tolerance);
+          // Each particle computes its half of the pair force: antisymmetric to the last bit.
+          if (!wall) CHECK(r.momentum_error < 1e-13);
+        }
+}
+
+TEST_CASE("hertz law with Tsuji damping: velocity-independent restitution, Hertz contact time") {
+  const double mass = sphere_mass(kRadius, kSteelDensity);
+  for (const Resolution res :
+       {Resolution{100, 5e-3, 5e-4, 2e-2}, Resolution{1000, 5e-4, 5e-4, 2e-3}})
+    for (bool wall : {false, true})
+      for (double e : {0.3, 0.6, 0.9, 1.0})
+        for (double speed : {0.1, 1.0, 5.0}) {
+          CAPTURE(res.steps_per_contact);
+          CAPTURE(wall);
+          CAPTURE(e);
+          CAPTURE(speed);
+          const ContactParams contact = hertz_contact(kSteelYoung, kSteelPoisson, e, 0);
+          const double tc =
+              wall ? hertz_contact_time(mass, kRadius, contact.hertz_modulus_pw, speed)
+                   : hertz_contact_time(0.5 * mass, 0.5 * kRadius, contact.hertz_modulus_pp, speed);
+          const double dt = tc / res.steps_per_contact;
+          const Impact r = wall ? wall_impact(NormalModel::hertz, contact, e, speed, dt)
+                                : pair_impact(NormalModel::hertz, contact, e, speed, dt);
+          CHECK(std::fabs(r.restitution - e) < res.restitution_tolerance);
+          CHECK(std::fabs(r.energy_balance) < res.energy_tolerance);
+          if (!wall) CHECK(r.momentum_error < 1e-13);
+          // Johnson's time is for the undamped contact (2.868 is rounded to 4 digits).
+          if (e == 1.0) CHECK(std::fabs(r.contact_time / tc - 1) < res.contact_time_tolerance);
+        }
+}
+
+}  // namespace
+}  // namespace pdsim

@@ -1,0 +1,135 @@
+// The per-particle step (kernels/particle_step.hpp): container walls (box and cylinder) and the
+// blow-up guard flags.
+#include "kernels/particle_step.hpp"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "tests/kernels/dem_fixtures.hpp"
+
+namespace pdsim {
+namespace {
+
+using namespace fixtures;
+
+constexpr double kRadius = 2.5e-3;  // m
+
+EngineConfig steel_cylinder(double radius, double half_height, const ContactParams& contact,
+                            TangentialModel tangential, double dt_s) {
+  EngineConfig c =
+      steel_box({radius, radius, half_height}, NormalModel::hertz, tangential, contact, dt_s);
+  c.shape = WallShape::cylinder;
+  c.geometry.radius = radius;
+  return c;
+}
+
+TEST_CASE("cylinder side wall: normal along the radius, deck restitution") {
+  // A ball moving through the axis hits the side wall head-on (the wall normal is radial): it
+  // must come back along the same line at e times its speed (Hertz at dt = tc/100, see
+  // contact_normal_test.cpp for the discretisation error).
+  const double cylinder_radius = 0.02, speed = 1.0;
+  const double mass = sphere_mass(kRadius, kSteelDensity);
+  for (double e : {0.3, 0.6, 0.9}) {
+    CAPTURE(e);
+    const ContactParams contact = hertz_contact(kSteelYoung, kSteelPoisson, e, 0);
+    const double dt = hertz_contact_time(mass, kRadius, contact.hertz_modulus_pw, speed) / 100;
+    EngineConfig c = steel_cylinder(cylinder_radius, 0.02, contact, TangentialModel::none, dt);
+    const Vec3 direction{std::cos(0.5), std::sin(0.5), 0};
+    add_particle(c, kRadius, {0, 0, 0.003}, speed * direction);
+    auto engine = make_engine(c);
+    const auto overlap = [&](const std::vector<ParticleState>& p) {
+      const Vec3 x = p[0].position;
+      return std::hypot(x.x, x.y) + kRadius - cylinder_radius;
+    };
+    const ImpactRecord r = follow_impact(*engine, dt, overlap, 1000000);
+    const Vec3 v = r.after[0].velocity;
+    const double rebound = -dot(v, direction);
+    CHECK(std::fabs(rebound / speed - e) < 5e-3);
+    CHECK(norm(v + rebound * direction) < 1e-9 * speed);
+  }
+}
+
+TEST_CASE("cylinder: a ball thrown in under gravity stays inside") {
+  // Soft Hertz (E = 1e8 Pa) so that many wall impacts fit in a short run; e = 0.9, Mindlin
+  // friction 0.3. No wall overlap may exceed Hertz's impact overlap at the largest speed the
+  // energy allows, (15 m v^2 / (16 E* sqrt(R)))^(2/5) (Johnson 1985, ch. 11).
+  const double cylinder_radius = 0.015, half_height = 0.02, young = 1e8, gravity = 9.81;
+  const double dt = 0.15 * rayleigh_time(kRadius, kSteelDensity, young, kSteelPoisson);
+  const ContactParams contact = hertz_contact(young, kSteelPoisson, 0.9, 0.3);
+  EngineConfig c =
+      steel_cylinder(cylinder_radius, half_height, contact, TangentialModel::history, dt);
+  c.gravity = Vec3{0, 0, -gravity};
+  const Vec3 v0{1.2, -0.7, 0.3};
+  add_particle(c, kRadius, {0.004, 0.006, 0.01}, v0);
+  auto engine = make_engine(c);
+  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double v_max_sq = dot(v0, v0) + 2 * gravity * (0.01 + half_height);
+  const double overlap_bound = std::pow(
+      15 * mass * v_max_sq / (16 * contact.hertz_modulus_pw * std::sqrt(kRadius)), 2.0 / 5.0);
+  double worst_side = -1, worst_floor = -1;
+  int side_impacts = 0;
+  bool touching = false;
+  int flags = 0;
+  for (int n = 0; n < 40000; ++n) {
+    flags |= step(*engine, dt).flags;
+    const Vec3 x = engine->particles()[0].position;
+    const double side = std::hypot(x.x, x.y) + kRadius - cylinder_radius;
+    worst_side = std::max(worst_side, side);
+    worst_floor = std::max(worst_floor, kRadius - (x.z + half_height));
+    if (side > 0 && !touching) ++side_impacts;
+    touching = side > 0;
+  }
+  CHECK(flags == 0);
+  CHECK(side_impacts >= 5);
+  CHECK(worst_side < overlap_bound);
+  CHECK(worst_floor < overlap_bound);
+  CHECK(worst_side > 0.1 * overlap_bound);  // the bound is not vacuous
+}
+
+TEST_CASE("blow-up guard flags") {
+  const double stiffness = 1e5;
+  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double tc = linear_contact_time(stiffness, 0.5 * mass, 0.9);
+  const Vec3 half{0.01, 0.01, 0.01};
+  auto two_balls = [&](double dt) {
+    EngineConfig c = steel_box(half, NormalModel::linear, TangentialModel::none,
+                               linear_contact(stiffness, 0.9, 0), dt);
+    add_particle(c, kRadius, {-0.004, 0.001, 0}, {1, 0, 0});
+    add_particle(c, kRadius, {0.004, 0, 0}, {-1, 0, 0});
+    return c;
+  };
+  auto flags_within = [](const EngineConfig& c, int steps) {
+    auto engine = make_engine(c);
+    int flags = 0;
+    for (int n = 0; n < steps && !flags; ++n) flags = step(*engine, c.dt).flags;
+    return flags;
+  };
+  SUBCASE("dt far above the stability limit") {
+    // omega dt = 5 pi > 2: the explicit step amplifies every contact until a ball leaves.
+    CHECK((flags_within(two_balls(5 * tc), 1000) & (kNonFinite | kEscaped)) != 0);
+    // The same scene at a stable step raises nothing.
+    CHECK(flags_within(two_balls(tc / 50), 20000) == 0);
+  }
+  SUBCASE("a ball outside the box") {
+    EngineConfig c = two_balls(tc / 50);
+    c.particles[1].position = {0.02, 0, 0};
+    CHECK(flags_within(c, 1) == kEscaped);
+  }
+  SUBCASE("a ball outside the cylinder") {
+    EngineConfig c = steel_cylinder(0.01, 0.01, hertz_contact(kSteelYoung, kSteelPoisson, 0.9, 0),
+                                    TangentialModel::none, 1e-7);
+    add_particle(c, kRadius, {0.01, 0.01, 0}, {});
+    CHECK(flags_within(c, 1) == kEscaped);
+  }
+  SUBCASE("a non-finite velocity") {
+    EngineConfig c = two_balls(tc / 50);
+    c.particles[0].velocity.y = std::numeric_limits<double>::quiet_NaN();
+    CHECK((flags_within(c, 1) & kNonFinite) != 0);
+  }
+}
+
+}  // namespace
+}  // namespace pdsim

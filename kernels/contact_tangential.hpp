@@ -23,7 +23,7 @@ struct DirectionalCoulomb {
   PDSIM_HD static Vec3 force(Vec3*, Vec3, Vec3 vt, const NormalResponse&, double normal_force,
                              double dt, const ContactParams& p, double& dissipated) {
     const double speed = norm(vt);
-    const double scale = p.friction * fabs(normal_force) / fmax(speed, p.slip_velocity);
+    const double scale = p.friction * fabs(normal_force) / max_of(speed, p.slip_velocity);
     dissipated += scale * speed * speed * dt;
     return -scale * vt;
   }
@@ -40,17 +40,20 @@ struct MindlinHistory {
                              double& dissipated) {
     // Project the stored displacement into the current tangent plane, keeping its length.
     Vec3 s = *xi;
-    const double old_len = norm(s);
-    s -= dot(s, normal) * normal;
-    const double new_len = norm(s);
-    if (new_len > 0) s = (old_len / new_len) * s;
-    const double stored_before = 0.5 * r.tangent_stiffness * dot(s, s);
+    const double old_sq = dot(s, s);
+    const double off_plane = dot(s, normal);
+    if (off_plane != 0.0) {
+      s -= off_plane * normal;
+      const double new_sq = dot(s, s);
+      if (new_sq > 0) s = sqrt(old_sq / new_sq) * s;
+    }
+    const double stored_before = 0.5 * r.tangent_stiffness * old_sq;
     s += dt * vt;
     Vec3 f = -r.tangent_stiffness * s - r.tangent_damping * vt;
-    const double f_len = norm(f);
+    const double f_sq = dot(f, f);
     const double f_max = p.friction * fabs(normal_force);
-    if (f_len > f_max) {
-      const double ratio = f_max / f_len;
+    if (f_sq > f_max * f_max) {
+      const double ratio = f_max / sqrt(f_sq);
       if (r.tangent_stiffness > 0) {
         const Vec3 damped = (r.tangent_damping / r.tangent_stiffness) * vt;
         s = ratio * (s + damped) - damped;

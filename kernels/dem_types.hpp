@@ -22,6 +22,11 @@ struct ContactParams {
   double slip_velocity = 1e-5;          // m/s, regularises the direction of directional Coulomb
 };
 
+// max() without the NaN rules of fmax, which compilers turn into a library call.
+PDSIM_HD double max_of(double a, double b) {
+  return a > b ? a : b;
+}
+
 enum class WallShape : int { box = 0, cylinder = 1 };
 
 struct ContainerGeometry {

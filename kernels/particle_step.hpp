@@ -68,7 +68,7 @@ PDSIM_HD void accumulate(ParticleContribution& sum, const ParticleContribution& 
   sum.dissipated_normal += c.dissipated_normal;
   sum.dissipated_tangential += c.dissipated_tangential;
   sum.kinetic += c.kinetic;
-  sum.drift_sq = fmax(sum.drift_sq, c.drift_sq);
+  sum.drift_sq = max_of(sum.drift_sq, c.drift_sq);
   sum.flags |= c.flags;
 }
 
@@ -105,7 +105,7 @@ PDSIM_HD ContactOutcome<V> contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 
   if constexpr (V::kRolling) {
     // Constant directional rolling resistance: |T| = mu_r R* |Fn| against the relative spin.
     const double spin = norm(omega_rel);
-    const double scale = p.rolling_friction * radius_eff * fabs(fn) / fmax(spin, 1e-6);
+    const double scale = p.rolling_friction * radius_eff * fabs(fn) / max_of(spin, 1e-6);
     out.torque -= scale * omega_rel;
   }
   return out;
@@ -206,7 +206,7 @@ PDSIM_HD ParticleContribution step_particle(int i, const ParticleStepArgs& a) {
       wall(2, local.y + h.y, {0, 1, 0});
       wall(3, h.y - local.y, {0, -1, 0});
     }
-    escape = fmax(fabs(local.x) - h.x, fabs(local.y) - h.y);
+    escape = max_of(fabs(local.x) - h.x, fabs(local.y) - h.y);
   } else {
     const double rho_sq = local.x * local.x + local.y * local.y;
     const double inner = a.geometry.radius - radius;
@@ -220,7 +220,7 @@ PDSIM_HD ParticleContribution step_particle(int i, const ParticleStepArgs& a) {
     wall(4, local.z + h.z, {0, 0, 1});
     wall(5, h.z - local.z, {0, 0, -1});
   }
-  escape = fmax(escape, fabs(local.z) - h.z);
+  escape = max_of(escape, fabs(local.z) - h.z);
   if constexpr (kHistory) a.history.wall_mask_out[i] = wall_mask_out;
   force += wall_force;
   c.wall_force = -wall_force;

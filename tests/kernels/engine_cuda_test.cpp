@@ -1,0 +1,278 @@
+// The CUDA backend against the CPU backend. Both launch the same per-particle functions
+// (kernels/particle_step.hpp, kernels/neighbours.hpp) on the same particle order, so they must
+// agree to rounding: the reference is the CPU engine, whose physics the other kernel tests check
+// against analytical values. Two CUDA runs must agree bitwise (fixed-order reductions).
+// Without a usable CUDA device every GPU test is skipped with a message.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "kernels/engine.hpp"
+#include "src/scene.hpp"
+
+namespace {
+
+using namespace pdsim;
+
+bool gpu_or_skip() {
+  std::string description;
+  if (cuda_device_available(&description)) return true;
+  MESSAGE("skipped: no usable CUDA device (" << description << ")");
+  return false;
+}
+
+struct SceneSpec {
+  NormalModel normal;
+  TangentialModel tangential;
+  bool rolling, gravity, polydisperse;
+  WallShape shape;
+};
+
+// Reproducible uniform numbers in [0, 1) (64-bit LCG, Knuth's MMIX constants).
+struct Uniform {
+  std::uint64_t state = 12345;
+  double operator()() {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(state >> 11) * 0x1.0p-53;
+  }
+};
+
+constexpr int kSide = 6, kLayers = 10;         // 360 particles: more than one 256-particle block
+constexpr double kRadius = 0.0025;             // m, steel spheres d = 5 mm (the benchmark scene)
+constexpr double kPitch = 2 * kRadius + 2e-4;  // m, lattice spacing: 0.2 mm gaps
+constexpr double kWallGap = 1e-4;              // m, between the outer spheres and the walls
+constexpr double kDt = 1e-6;                   // s
+
+// A lattice of spheres a fraction of a millimetre apart, with random velocities up to 1 m/s and
+// spins up to 200 rad/s, in a container just large enough: within 1000 steps (1 ms) every
+// particle collides with neighbours and walls and the lists are rebuilt several times.
+EngineConfig make_scene(const SceneSpec& s, Backend backend) {
+  EngineConfig c;
+  c.backend = backend;
+  c.threads = 2;
+  c.shape = s.shape;
+  c.normal = s.normal;
+  c.tangential = s.tangential;
+  c.rolling = s.rolling;
+  if (s.gravity) c.gravity = Vec3{0, 0, -9.81};
+  c.density = 7800;
+  c.dt = kDt;
+  const double young = 2e11, poisson = 0.3, restitution = 0.5;
+  c.contact.hertz_modulus_pp = c.contact.hertz_modulus_pw = young / (2 * (1 - poisson * poisson));
+  c.contact.shear_modulus_pp = c.contact.shear_modulus_pw =
+      young / (2 * (1 + poisson)) / (2 * (2 - poisson));
+  c.contact.linear_stiffness = 1e5;  // N/m: contact time 160 steps
+  c.contact.damping_factor = s.normal == NormalModel::linear ? linear_damping_factor(restitution)
+                                                             : hertz_damping_factor(restitution);
+  c.contact.friction = 0.3;
+  c.contact.rolling_friction = s.rolling ? 0.01 : 0.0;
+  const double extent = 0.5 * (kSide - 1) * kPitch;  // centre of the outer spheres, m
+  const double half_height = 0.5 * (kLayers - 1) * kPitch + kRadius + kWallGap;
+  if (s.shape == WallShape::box) {
+    c.geometry.half_size = {extent + kRadius + kWallGap, extent + kRadius + kWallGap, half_height};
+  } else {
+    c.geometry.radius = std::sqrt(2.0) * extent + kRadius + kWallGap;
+    c.geometry.half_size = {c.geometry.radius, c.geometry.radius, half_height};
+  }
+  Uniform u;
+  for (int k = 0; k < kLayers; ++k)
+    for (int j = 0; j < kSide; ++j)
+      for (int i = 0; i < kSide; ++i) {
+        const Vec3 centre{i * kPitch - extent, j * kPitch - extent,
+                          (k - 0.5 * (kLayers - 1)) * kPitch};
+        const Vec3 velocity{2 * u() - 1, 2 * u() - 1, 2 * u() - 1};
+        const Vec3 spin{400 * u() - 200, 400 * u() - 200, 400 * u() - 200};
+        c.particles.push_back({centre, velocity, spin});
+        c.radius.push_back(s.polydisperse ? kRadius * (0.8 + 0.2 * u()) : kRadius);
+      }
+  return c;
+}
+
+// The container shaken along x: 2 mm at 50 Hz (peak 0.63 m/s).
+ContainerKinematics container_at(int step) {
+  const double omega = 2 * kPi * 50, amplitude = 0.002, t = step * kDt;
+  return {{amplitude * std::sin(omega * t), 0, 0}, {amplitude * omega * std::cos(omega * t), 0, 0}};
+}
+
+struct Trace {
+  std::vector<StepTotals> totals;
+  std::vector<ParticleState> final;
+};
+
+Trace advance(DemEngine& engine, int first_step, int steps) {
+  Trace trace;
+  for (int n = first_step; n < first_step + steps; ++n) {
+    trace.totals.push_back(engine.compute(container_at(n), kDt));
+    engine.accept();
+  }
+  trace.final = engine.particles();
+  return trace;
+}
+
+double max_norm(const std::vector<ParticleState>& p, Vec3 ParticleState::*member) {
+  double m = 0;
+  for (const ParticleState& q : p) m = std::max(m, norm(q.*member));
+  return m;
+}
+
+// Largest deviation of `other` from `reference` in units of the reference run's largest value:
+// the particle state after the run, and the totals of every step. NaN counts as the worst.
+struct Deviation {
+  double position = 0, velocity = 0, spin = 0;  // relative to the container size, v_max, w_max
+  double kinetic = 0, dissipated = 0, wall_force = 0, drift = 0;
+  bool flags_equal = true;
+};
+
+void keep_worst(double& worst, double candidate) {
+  if (std::isnan(candidate) || candidate > worst) worst = candidate;
+}
+
+Deviation compare(const Trace& reference, const Trace& other, double container_size) {
+  Deviation d;
+  const double v_max = max_norm(reference.final, &ParticleState::velocity);
+  const double w_max = max_norm(reference.final, &ParticleState::spin);
+  for (std::size_t i = 0; i < reference.final.size(); ++i) {
+    const ParticleState& a = reference.final[i];
+    const ParticleState& b = other.final[i];
+    keep_worst(d.position, norm(a.position - b.position) / container_size);
+    keep_worst(d.velocity, norm(a.velocity - b.velocity) / v_max);
+    keep_worst(d.spin, norm(a.spin - b.spin) / w_max);
+  }
+  double dissipated_max = 0, force_max = 0, drift_max = 0;
+  for (const StepTotals& t : reference.totals) {
+    dissipated_max = std::max(
+        {dissipated_max, std::fabs(t.dissipated_normal), std::fabs(t.dissipated_tangential)});
+    force_max = std::max(force_max, norm(t.wall_force));
+    drift_max = std::max(drift_max, t.drift_sq);
+  }
+  for (std::size_t n = 0; n < reference.totals.size(); ++n) {
+    const StepTotals& a = reference.totals[n];
+    const StepTotals& b = other.totals[n];
+    keep_worst(d.kinetic, std::fabs(a.kinetic - b.kinetic) / a.kinetic);
+    keep_worst(d.dissipated, std::fabs(a.dissipated_normal - b.dissipated_normal) / dissipated_max);
+    keep_worst(d.dissipated,
+               std::fabs(a.dissipated_tangential - b.dissipated_tangential) / dissipated_max);
+    keep_worst(d.wall_force, norm(a.wall_force - b.wall_force) / force_max);
+    keep_worst(d.drift, std::fabs(a.drift_sq - b.drift_sq) / drift_max);
+    d.flags_equal = d.flags_equal && a.flags == b.flags;
+  }
+  return d;
+}
+
+double container_size(const EngineConfig& c) {
+  return 2 * std::max({c.geometry.half_size.x, c.geometry.half_size.y, c.geometry.half_size.z});
+}
+
+const SceneSpec kScenes[] = {
+    {NormalModel::hertz, TangentialModel::history, false, true, false, WallShape::box},
+    {NormalModel::hertz, TangentialModel::history, true, false, true, WallShape::cylinder},
+    {NormalModel::linear, TangentialModel::directional, false, true, true, WallShape::box},
+    {NormalModel::linear, TangentialModel::none, false, false, false, WallShape::cylinder},
+};
+
+}  // namespace
+
+TEST_CASE("cuda_device_available answers without a GPU or driver and make_engine reports it") {
+  std::string description;
+  bool available = true;
+  REQUIRE_NOTHROW(available = cuda_device_available(&description));
+  CHECK_FALSE(description.empty());  // the device name, or why there is none
+  if (!available) {
+    EngineConfig c = make_scene(kScenes[0], Backend::cuda);
+    CHECK_THROWS_AS(make_engine(c), InputError);
+  }
+}
+
+TEST_CASE("cuda engine follows the cpu engine for 1000 steps in every physics family") {
+  if (!gpu_or_skip()) return;
+  for (const SceneSpec& spec : kScenes) {
+    const EngineConfig cpu_config = make_scene(spec, Backend::cpu);
+    const EngineConfig cuda_config = make_scene(spec, Backend::cuda);
+    auto cpu = make_engine(cpu_config);
+    auto cuda = make_engine(cuda_config);
+    CAPTURE(cuda->variant());
+    REQUIRE(cuda->variant() == cpu->variant());
+    REQUIRE(cuda->backend().rfind("cuda", 0) == 0);
+    const Trace reference = advance(*cpu, 0, 1000);
+    const Trace trace = advance(*cuda, 0, 1000);
+    // The scene must be eventful and valid for the comparison to mean anything.
+    double dissipated = 0;
+    for (const StepTotals& t : reference.totals) {
+      REQUIRE(t.flags == 0);
+      dissipated += t.dissipated_normal;
+    }
+    CHECK(dissipated > 0);
+    const Deviation d = compare(reference, trace, container_size(cpu_config));
+    CHECK(d.position <= 1e-9);
+    CHECK(d.velocity <= 1e-9);
+    CHECK(d.spin <= 1e-9);
+    CHECK(d.kinetic <= 1e-12);
+    CHECK(d.dissipated <= 1e-12);
+    CHECK(d.wall_force <= 1e-12);
+    CHECK(d.drift <= 1e-12);
+    CHECK(d.flags_equal);
+  }
+}
+
+TEST_CASE("two cuda runs are bitwise identical") {
+  if (!gpu_or_skip()) return;
+  const EngineConfig config = make_scene(kScenes[1], Backend::cuda);
+  auto first = make_engine(config);
+  auto second = make_engine(config);
+  const Trace a = advance(*first, 0, 1000);
+  const Trace b = advance(*second, 0, 1000);
+  const StateArrays saved_a = first->save();
+  const StateArrays saved_b = second->save();
+  for (const char* key : {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "mask_lo"}) {
+    CAPTURE(key);
+    CHECK(saved_a.at(key) == saved_b.at(key));
+  }
+  for (std::size_t n = 0; n < a.totals.size(); ++n) {
+    CAPTURE(n);
+    REQUIRE(a.totals[n].kinetic == b.totals[n].kinetic);
+    REQUIRE(a.totals[n].dissipated_normal == b.totals[n].dissipated_normal);
+    REQUIRE(a.totals[n].dissipated_tangential == b.totals[n].dissipated_tangential);
+    REQUIRE(a.totals[n].wall_force.x == b.totals[n].wall_force.x);
+  }
+}
+
+TEST_CASE("a cuda step computed twice before accept gives the same totals (tight coupling)") {
+  if (!gpu_or_skip()) return;
+  auto engine = make_engine(make_scene(kScenes[0], Backend::cuda));
+  advance(*engine, 0, 300);
+  const StepTotals first = engine->compute(container_at(300), kDt);
+  const StepTotals again = engine->compute(container_at(300), kDt);
+  CHECK(first.kinetic == again.kinetic);
+  CHECK(first.dissipated_tangential == again.dissipated_tangential);
+  CHECK(first.wall_force.x == again.wall_force.x);
+}
+
+TEST_CASE("checkpoints move between the cpu and cuda engines mid-run") {
+  if (!gpu_or_skip()) return;
+  for (const SceneSpec& spec : {kScenes[0], kScenes[1]}) {
+    const EngineConfig cpu_config = make_scene(spec, Backend::cpu);
+    auto cpu = make_engine(cpu_config);
+    auto cuda = make_engine(make_scene(spec, Backend::cuda));
+    advance(*cpu, 0, 500);
+    cuda->restore(cpu->save());  // live contacts and tangential history cross over
+    const Trace reference = advance(*cpu, 500, 500);
+    const Trace trace = advance(*cuda, 500, 500);
+    const Deviation d = compare(reference, trace, container_size(cpu_config));
+    CAPTURE(cuda->variant());
+    CHECK(d.position <= 1e-9);
+    CHECK(d.velocity <= 1e-9);
+    CHECK(d.spin <= 1e-9);
+    CHECK(d.kinetic <= 1e-12);
+    // And back: a cuda checkpoint restored on a fresh cpu engine continues the cuda run.
+    auto cpu_again = make_engine(cpu_config);
+    cpu_again->restore(cuda->save());
+    const Trace cuda_more = advance(*cuda, 1000, 200);
+    const Trace cpu_more = advance(*cpu_again, 1000, 200);
+    const Deviation back = compare(cuda_more, cpu_more, container_size(cpu_config));
+    CHECK(back.position <= 1e-9);
+    CHECK(back.velocity <= 1e-9);
+  }
+}

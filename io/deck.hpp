@@ -117,7 +117,7 @@ struct ExcitationSpec {
 };
 
 struct CouplingSpec {
-  CouplingScheme scheme = CouplingScheme::loose;
+  CouplingScheme scheme = CouplingScheme::interleaved;  // energy-consistent at the cost of loose
   int every = 1;             // DEM steps per coupling exchange
   double tolerance = 1e-6;   // tight: relative change of the interface force
   int max_iterations = 10;   // tight

@@ -29,6 +29,32 @@ PDSIM_HD int cell_of(const Grid& g, Vec3 p) {
   return (cz * g.ny + cy) * g.nx + cx;
 }
 
+// Host-side choices both backends share (checkpoints carry their results, so they must agree).
+
+// Verlet skin: 0.3 r_min unless the scene sets one.
+inline double default_skin(double r_min, double configured) {
+  return configured > 0 ? configured : 0.3 * r_min;
+}
+
+// Slots per particle: the densest packing (0.7405) of the smallest spheres in a ball of radius
+// reach + r_min, capped at the 64 bits of the history mask.
+inline int neighbour_slots(double r_min, double r_max, double skin) {
+  const double reach = 2 * r_max + skin + r_min;
+  const int bound = static_cast<int>(ceil(0.7405 * pow(reach / r_min, 3)));
+  return bound < 1 ? 1 : (bound > 64 ? 64 : bound);
+}
+
+// Grid around the container at `centre`, one cell of margin on every side.
+inline Grid grid_around(Vec3 centre, Vec3 half_size, double cell) {
+  Grid g;
+  g.origin = centre - half_size - Vec3{cell, cell, cell};
+  g.cell_size = cell;
+  g.nx = static_cast<int>(ceil(2 * (half_size.x + cell) / cell));
+  g.ny = static_cast<int>(ceil(2 * (half_size.y + cell) / cell));
+  g.nz = static_cast<int>(ceil(2 * (half_size.z + cell) / cell));
+  return g;
+}
+
 struct NeighbourBuildArgs {
   int count;
   Grid grid;

@@ -43,13 +43,6 @@ void permute(std::vector<T>& a, const std::vector<std::int32_t>& order, std::siz
   a.swap(b);
 }
 
-// Upper bound on how many particles can lie within reach + skin of one particle, from the
-// densest sphere packing (0.7405) of the smallest spheres in a ball of radius reach + r_min.
-int neighbour_bound(double r_min, double r_max, double skin) {
-  const double reach = 2 * r_max + skin + r_min;
-  return static_cast<int>(std::ceil(0.7405 * std::pow(reach / r_min, 3)));
-}
-
 // Inverse mass and inverse moment of inertia (solid sphere, I = 2/5 m r^2) of one ball: one
 // expression for construction and restore, so that a restored run continues bitwise.
 void mass_properties(double radius, double density, double& inv_mass, double& inv_inertia) {
@@ -67,8 +60,8 @@ class CpuEngine final : public DemEngine {
     const auto [rmin_it, rmax_it] = std::minmax_element(c.radius.begin(), c.radius.end());
     r_min_ = *rmin_it;
     r_max_ = *rmax_it;
-    skin_ = c.skin > 0 ? c.skin : 0.3 * r_min_;
-    max_neighbours_ = std::max(1, std::min(neighbour_bound(r_min_, r_max_, skin_), 64));
+    skin_ = default_skin(r_min_, c.skin);
+    max_neighbours_ = neighbour_slots(r_min_, r_max_, skin_);
     const std::size_t n = static_cast<std::size_t>(count_);
     for (auto& s : state_) s.resize(n);
     radius_ = c.radius;
@@ -278,14 +271,7 @@ class CpuEngine final : public DemEngine {
   void rebuild(const ContainerKinematics& container) {
     const std::size_t n = static_cast<std::size_t>(count_);
     StateBuffer& s = state_[current_];
-    const double cell = 2 * r_max_ + skin_;
-    const Vec3 h = config_.geometry.half_size;
-    const Vec3 margin{cell, cell, cell};
-    grid_.origin = container.position - h - margin;
-    grid_.cell_size = cell;
-    grid_.nx = static_cast<int>(std::ceil(2 * (h.x + cell) / cell));
-    grid_.ny = static_cast<int>(std::ceil(2 * (h.y + cell) / cell));
-    grid_.nz = static_cast<int>(std::ceil(2 * (h.z + cell) / cell));
+    grid_ = grid_around(container.position, config_.geometry.half_size, 2 * r_max_ + skin_);
     const int cells = grid_.nx * grid_.ny * grid_.nz;
 
     // Counting sort by cell (stable, so the order is reproducible).

@@ -249,13 +249,6 @@ struct PickStep {
 
 // ---- engine -----------------------------------------------------------------------------------
 
-// Same bound as the CPU engine (checkpoints carry it, so both must agree): the densest sphere
-// packing (0.7405) of the smallest spheres in a ball of radius reach + r_min.
-int neighbour_bound(double r_min, double r_max, double skin) {
-  const double reach = 2 * r_max + skin + r_min;
-  return static_cast<int>(std::ceil(0.7405 * std::pow(reach / r_min, 3)));
-}
-
 struct DeviceState {
   DeviceArray<double> x, y, z, vx, vy, vz, wx, wy, wz;
   DeviceArray<double>* all[9] = {&x, &y, &z, &vx, &vy, &vz, &wx, &wy, &wz};
@@ -282,8 +275,8 @@ class CudaEngine final : public DemEngine {
     const auto [rmin_it, rmax_it] = std::minmax_element(c.radius.begin(), c.radius.end());
     r_min_ = *rmin_it;
     r_max_ = *rmax_it;
-    skin_ = c.skin > 0 ? c.skin : 0.3 * r_min_;
-    max_neighbours_ = std::max(1, std::min(neighbour_bound(r_min_, r_max_, skin_), 64));
+    skin_ = default_skin(r_min_, c.skin);
+    max_neighbours_ = neighbour_slots(r_min_, r_max_, skin_);
     int device = 0;
     check(cudaGetDevice(&device), "cudaGetDevice");
     cudaDeviceProp prop{};
@@ -570,14 +563,7 @@ class CudaEngine final : public DemEngine {
   void rebuild(const ContainerKinematics& container) {
     const cudaStream_t stream = stream_.get();
     const int blocks = blocks_for(count_);
-    const double cell = 2 * r_max_ + skin_;
-    const Vec3 h = config_.geometry.half_size;
-    const Vec3 margin{cell, cell, cell};
-    grid_.origin = container.position - h - margin;
-    grid_.cell_size = cell;
-    grid_.nx = static_cast<int>(std::ceil(2 * (h.x + cell) / cell));
-    grid_.ny = static_cast<int>(std::ceil(2 * (h.y + cell) / cell));
-    grid_.nz = static_cast<int>(std::ceil(2 * (h.z + cell) / cell));
+    grid_ = grid_around(container.position, config_.geometry.half_size, 2 * r_max_ + skin_);
     const int cells = grid_.nx * grid_.ny * grid_.nz;
     cell_start_.resize(static_cast<std::size_t>(cells));
     cell_end_.resize(static_cast<std::size_t>(cells));

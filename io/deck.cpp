@@ -338,7 +338,7 @@ StructureSpec read_structure(const Table& t) {
     s.kind = StructureKind::beam;
     t.allow_only(
         {"kind", "length", "elements", "young", "density", "poisson", "section", "supports",
-         "damping_ratio", "rayleigh", "timoshenko", "direction", "modes", "integrator"},
+         "damping_ratio", "rayleigh", "timoshenko", "direction", "axis", "modes", "integrator"},
         " for kind = \"beam\"");
     const std::string why = "for kind = \"beam\"";
     BeamSpec& b = s.beam;
@@ -368,7 +368,16 @@ StructureSpec read_structure(const Table& t) {
     // two DOF (deflection, slope) per node
     s.modes = static_cast<int>(t.integer("modes", 0, 2 * (kMaxElements + 1)).value_or(0));
   }
-  s.direction = t.direction("direction").value_or(s.direction);
+  // A beam lies along x and bends along z unless told otherwise.
+  const Vec3 default_direction = s.kind == StructureKind::beam ? Vec3{0, 0, 1} : s.direction;
+  s.direction = t.direction("direction").value_or(default_direction);
+  if (s.kind == StructureKind::beam) {
+    s.beam.axis = t.direction("axis").value_or(s.beam.axis);
+    if (std::fabs(dot(s.beam.axis, s.direction)) > 1e-9)
+      t.fail(t.has("axis") ? "axis" : "direction",
+             "the beam axis and the bending direction must be perpendicular (axis defaults to "
+             "[1, 0, 0])");
+  }
   if (const auto i = t.choice("integrator", integrators))
     s.integrator = *i == 0 ? IntegratorKind::exact : IntegratorKind::cvode;
   return s;

@@ -26,16 +26,17 @@ enum class Backend { automatic, cpu, cuda };
 enum class IntegratorKind { exact, cvode };
 
 struct BeamSpec {
-  double length = 0;           // m
+  double length = 0;  // m
   int elements = 0;
-  double young = 0;            // Pa
-  double density = 0;          // kg/m^3
-  double poisson = 0.3;        // for the Timoshenko shear modulus
-  double area = 0;             // m^2, from `section`
-  double inertia = 0;          // m^4, second moment about the bending axis
-  double shear_factor = 0;     // Timoshenko shear coefficient (5/6 rectangle, 0.9 circle)
-  double section_height = 0;   // m, section depth along `direction` (0 = not given)
+  double young = 0;           // Pa
+  double density = 0;         // kg/m^3
+  double poisson = 0.3;       // for the Timoshenko shear modulus
+  double area = 0;            // m^2, from `section`
+  double inertia = 0;         // m^4, second moment about the bending axis
+  double shear_factor = 0;    // Timoshenko shear coefficient (5/6 rectangle, 0.9 circle)
+  double section_height = 0;  // m, section depth along `direction` (0 = not given)
   bool timoshenko = false;
+  Vec3 axis{1, 0, 0};  // unit, along the beam; a damper turns about axis x direction
   Support start = Support::clamped;
   Support end = Support::free;
 };
@@ -43,12 +44,12 @@ struct BeamSpec {
 struct StructureSpec {
   StructureKind kind = StructureKind::none;
   // sdof
-  double mass = 0;        // kg
-  double stiffness = 0;   // N/m
-  double damping = 0;     // N s/m (sdof: resolved from damping_ratio when that is given)
+  double mass = 0;           // kg
+  double stiffness = 0;      // N/m
+  double damping = 0;        // N s/m (sdof: resolved from damping_ratio when that is given)
   double damping_ratio = 0;  // sdof: of the bare system; beam: modal damping ratio on every mode
   std::optional<std::array<double, 2>> rayleigh;  // beam: C = alpha M + beta K
-  Vec3 direction{1, 0, 0};  // unit; sdof: motion direction; beam: bending direction
+  Vec3 direction{1, 0, 0};  // unit; sdof: motion direction; beam: bending direction ([0,0,1])
   BeamSpec beam;
   IntegratorKind integrator = IntegratorKind::exact;
   int modes = 0;  // beam: keep the first N modes (0 = full model)
@@ -63,10 +64,10 @@ struct ContainerSpec {
 
 struct ParticleSpec {
   int count = 0;
-  double diameter = 0;            // m, monodisperse
-  std::vector<double> diameters;  // polydisperse: diameters cycled over particles
+  double diameter = 0;                        // m, monodisperse
+  std::vector<double> diameters;              // polydisperse: diameters cycled over particles
   double diameter_min = 0, diameter_max = 0;  // polydisperse: uniform range
-  double density = 0;             // kg/m^3
+  double density = 0;                         // kg/m^3
   std::uint64_t seed = 1;
   Fill fill = Fill::random;
   bool polydisperse() const { return !diameters.empty() || diameter_max > 0; }
@@ -75,18 +76,18 @@ struct ParticleSpec {
 struct DamperSpec {
   ContainerSpec container;
   ParticleSpec particles;
-  int attach_node = -1;           // beam: node index (0 = start)
+  int attach_node = -1;            // beam: node index (0 = start)
   std::optional<double> attach_x;  // beam: position along the beam, m
 };
 
 struct ContactSpec {
   NormalModel model = NormalModel::hertz;
   TangentialModel tangential = TangentialModel::history;
-  double young = 0;          // Pa
+  double young = 0;  // Pa
   double poisson = 0.3;
-  double restitution = 0.6;  // (0, 1]
-  double friction = 0.0;     // Coulomb coefficient
-  double stiffness = 0;      // N/m, linear model normal stiffness (required for `linear`)
+  double restitution = 0.6;     // (0, 1]
+  double friction = 0.0;        // Coulomb coefficient
+  double stiffness = 0;         // N/m, linear model normal stiffness (required for `linear`)
   double rolling_friction = 0;  // dimensionless rolling resistance coefficient (0 = off)
 };
 
@@ -107,28 +108,28 @@ struct MotionSpec {
 struct ExcitationSpec {
   ExcitationKind kind = ExcitationKind::sine;
   ExcitationInput input = ExcitationInput::force;
-  double amplitude = 0;              // N, m or m/s^2 according to `input`
-  std::vector<double> frequencies;   // Hz, in the order they are run (prescribed: never empty)
+  double amplitude = 0;             // N, m or m/s^2 according to `input`
+  std::vector<double> frequencies;  // Hz, in the order they are run (prescribed: never empty)
   SettleSpec settle;
-  double frequency = 0;              // Hz, `sine`
-  double duration = 0;               // s, `sine`, `free_decay`, `prescribed`
-  double initial_displacement = 0;   // m, `free_decay`
-  MotionSpec motion;                 // `prescribed`
+  double frequency = 0;             // Hz, `sine`
+  double duration = 0;              // s, `sine`, `free_decay`, `prescribed`
+  double initial_displacement = 0;  // m, `free_decay`
+  MotionSpec motion;                // `prescribed`
 };
 
 struct CouplingSpec {
   CouplingScheme scheme = CouplingScheme::interleaved;  // energy-consistent at the cost of loose
-  int every = 1;             // DEM steps per coupling exchange
-  double tolerance = 1e-6;   // tight: relative change of the interface force
-  int max_iterations = 10;   // tight
+  int every = 1;                                        // DEM steps per coupling exchange
+  double tolerance = 1e-6;  // tight: relative change of the interface force
+  int max_iterations = 10;  // tight
 };
 
 struct SolverSpec {
-  double dt = 0;            // s; 0 = auto
-  double dt_safety = 0.0;   // 0 = default for the contact model
+  double dt = 0;           // s; 0 = auto
+  double dt_safety = 0.0;  // 0 = default for the contact model
   Backend backend = Backend::automatic;
   bool allow_unstable = false;
-  int threads = 0;          // 0 = OpenMP default
+  int threads = 0;  // 0 = OpenMP default
 };
 
 struct OutputSpec {

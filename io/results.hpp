@@ -8,11 +8,12 @@
 
 namespace pdsim {
 
-struct TimeSeries {  // structure DOF along the excitation direction, total force on the container(s)
+struct TimeSeries {  // structure DOF along the excitation direction, total force on the
+                     // container(s)
   std::vector<double> time, displacement, velocity, damper_force;  // s, m, m/s, N
 };
 
-struct FrfTable {  // one row per stepped-sine frequency
+struct FrfTable {                             // one row per stepped-sine frequency
   std::vector<double> frequency;              // Hz
   std::vector<double> amplitude;              // m, first-harmonic displacement amplitude
   std::vector<double> phase;                  // rad, of the displacement relative to the input
@@ -25,7 +26,7 @@ struct FrfTable {  // one row per stepped-sine frequency
   std::vector<double> dissipated_tangential;  // J per cycle, friction / tangential damping
 };
 
-struct PrescribedTable {  // one row per prescribed-motion frequency
+struct PrescribedTable {                 // one row per prescribed-motion frequency
   std::vector<double> frequency;         // Hz
   std::vector<double> dissipated_power;  // W, mean over the averaged cycles
   std::vector<double> force_amplitude;   // N, first harmonic of the container force along the axis

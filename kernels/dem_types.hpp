@@ -34,11 +34,22 @@ struct ContainerGeometry {
   double radius = 0;  // cylinder radius
 };
 
-// Rigid container motion at the start of a step (translation only; see DESIGN in README).
+// Rigid container motion at the start of a step. Rotation (a damper on a beam node) is read only
+// by the Rotating kernel variants.
 struct ContainerKinematics {
-  Vec3 position;  // centre, m
-  Vec3 velocity;  // m/s
+  Vec3 position;                                           // centre, m
+  Vec3 velocity;                                           // m/s
+  Vec3 axis_x{1, 0, 0}, axis_y{0, 1, 0}, axis_z{0, 0, 1};  // container axes in the world
+  Vec3 angular_velocity;                                   // rad/s
 };
+
+// A container that translates without turning.
+inline ContainerKinematics translating(Vec3 position, Vec3 velocity) {
+  ContainerKinematics k;
+  k.position = position;
+  k.velocity = velocity;
+  return k;
+}
 
 enum StepFlag : int { kNonFinite = 1, kEscaped = 2, kNeighbourOverflow = 4 };
 

@@ -26,6 +26,7 @@ struct EngineConfig {
   NormalModel normal = NormalModel::hertz;
   TangentialModel tangential = TangentialModel::history;
   bool rolling = false;
+  bool rotating = false;  // the container turns (a damper on a beam node)
   std::optional<Vec3> gravity;
   ContactParams contact;
   double dt = 0;                         // s

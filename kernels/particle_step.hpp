@@ -14,7 +14,7 @@ namespace pdsim {
 
 // A scene's physics, fixed at start: disabled effects compile away.
 template <class NormalLaw, class TangentialLaw, bool Rolling, bool Gravity, bool Polydisperse,
-          WallShape Shape>
+          WallShape Shape, bool Rotating = false>
 struct Variant {
   using Normal = NormalLaw;
   using Tangential = TangentialLaw;
@@ -22,6 +22,7 @@ struct Variant {
   static constexpr bool kGravity = Gravity;
   static constexpr bool kPolydisperse = Polydisperse;
   static constexpr WallShape kShape = Shape;
+  static constexpr bool kRotating = Rotating;
 };
 
 // Live contact-history slots are marked in bit masks, so that absent contacts cost no memory
@@ -58,13 +59,15 @@ struct ParticleStepArgs {
 
 // What one particle adds to the step totals (reduced by the launcher in a fixed order).
 struct ParticleContribution {
-  Vec3 wall_force;  // on the container
+  Vec3 wall_force;   // on the container
+  Vec3 wall_torque;  // on the container, about its centre (Rotating variants only)
   double dissipated_normal = 0, dissipated_tangential = 0, kinetic = 0, drift_sq = 0;
   int flags = 0;
 };
 
 PDSIM_HD void accumulate(ParticleContribution& sum, const ParticleContribution& c) {
   sum.wall_force += c.wall_force;
+  sum.wall_torque += c.wall_torque;
   sum.dissipated_normal += c.dissipated_normal;
   sum.dissipated_tangential += c.dissipated_tangential;
   sum.kinetic += c.kinetic;
@@ -174,14 +177,24 @@ PDSIM_HD ParticleContribution step_particle(int i, const ParticleStepArgs& a) {
 
   // Container walls, in the container frame. A cheap bounding test per axis skips the walls of
   // particles away from them.
-  const Vec3 local = x - a.container.position;
-  const Vec3 v_wall_rel = v - a.container.velocity;
+  const ContainerKinematics& box = a.container;
+  const Vec3 offset = x - box.position;
+  Vec3 local = offset;
+  Vec3 v_wall_rel = v - box.velocity;
+  if constexpr (V::kRotating) {
+    local = {dot(offset, box.axis_x), dot(offset, box.axis_y), dot(offset, box.axis_z)};
+    v_wall_rel -= cross(box.angular_velocity, offset);  // wall velocity at the particle
+  }
   const Vec3 h = a.geometry.half_size;
   Vec3 wall_force;
   std::uint8_t wall_mask_in = 0, wall_mask_out = 0;
   if constexpr (kHistory) wall_mask_in = a.history.wall_mask_in[i];
-  auto wall = [&](int slot, double gap, Vec3 normal) {
+  auto wall = [&](int slot, double gap, Vec3 local_normal) {
     if (gap >= radius) return;
+    Vec3 normal = local_normal;
+    if constexpr (V::kRotating)
+      normal =
+          local_normal.x * box.axis_x + local_normal.y * box.axis_y + local_normal.z * box.axis_z;
     Vec3 xi{};
     if constexpr (kHistory) {
       if (wall_mask_in >> slot & 1u) xi = load3(a.history.wall_in, i * kWallSlots + slot);
@@ -195,6 +208,8 @@ PDSIM_HD ParticleContribution step_particle(int i, const ParticleStepArgs& a) {
     }
     wall_force += out.force;
     torque += out.torque;
+    // The force acts on the wall at the foot of the normal through the particle centre.
+    if constexpr (V::kRotating) c.wall_torque -= cross(offset - gap * normal, out.force);
   };
   double escape;  // how far outside the container the centre may go before the run stops
   if constexpr (V::kShape == WallShape::box) {

@@ -14,11 +14,16 @@ inline bool is_polydisperse(const EngineConfig& c) {
 
 namespace dispatch_detail {
 
+template <class N, class T, bool R, bool G, bool P, WallShape S, class Make>
+auto by_rotation(const EngineConfig& c, Make&& make) {
+  if (c.rotating) return make.template operator()<Variant<N, T, R, G, P, S, true>>();
+  return make.template operator()<Variant<N, T, R, G, P, S, false>>();
+}
+
 template <class N, class T, bool R, bool G, bool P, class Make>
 auto by_shape(const EngineConfig& c, Make&& make) {
-  if (c.shape == WallShape::box)
-    return make.template operator()<Variant<N, T, R, G, P, WallShape::box>>();
-  return make.template operator()<Variant<N, T, R, G, P, WallShape::cylinder>>();
+  if (c.shape == WallShape::box) return by_rotation<N, T, R, G, P, WallShape::box>(c, make);
+  return by_rotation<N, T, R, G, P, WallShape::cylinder>(c, make);
 }
 
 template <class N, class T, bool R, bool G, class Make>
@@ -66,6 +71,7 @@ std::string variant_string() {
   if (V::kGravity) s += "/gravity";
   s += V::kPolydisperse ? "/poly" : "/mono";
   s += V::kShape == WallShape::box ? "/box" : "/cylinder";
+  if (V::kRotating) s += "/rotating";
   return s;
 }
 

@@ -41,8 +41,8 @@ double time_engine(EngineConfig config, long steps, long long* particle_steps) {
   const double omega = 2 * kPi * 20.0, amplitude = 0.004;
   for (long n = 0; n < steps; ++n) {
     const double t = static_cast<double>(n) * config.dt;
-    const ContainerKinematics k{{amplitude * std::sin(omega * t), 0, 0},
-                                {amplitude * omega * std::cos(omega * t), 0, 0}};
+    const ContainerKinematics k = translating({amplitude * std::sin(omega * t), 0, 0},
+                                              {amplitude * omega * std::cos(omega * t), 0, 0});
     const StepTotals& totals = engine->compute(k, config.dt);
     if (totals.flags) throw SimulationError("bench scene blew up");
     engine->accept();

@@ -49,7 +49,11 @@ CoupledSystem::CoupledSystem(const Deck& deck, const Scene& scene)
   }
   for (const DamperScene& d : scene.dampers) engines_.push_back(make_engine(d.engine));
   pending_force_.assign(engines_.size(), 0.0);
-  force_ = force_sum_ = guess_ = pending_force_;
+  force_ = force_sum_ = guess_ = torque_ = torque_sum_ = pending_torque_ = pending_force_;
+  if (deck.structure.kind == StructureKind::beam) {
+    const Vec3 axis = cross(deck.structure.beam.axis, direction_);
+    rotation_axis_ = (1.0 / norm(axis)) * axis;
+  }
   const int n = structure_.size();
   load_ = damper_load_ = q_start_ = v_start_ = Eigen::VectorXd::Zero(n);
 }
@@ -97,10 +101,22 @@ void CoupledSystem::external_load(double t, Eigen::VectorXd& load) const {
     load.noalias() = -drive_.base_acceleration(t) * (structure_.mass * structure_.base_influence);
 }
 
-ContainerKinematics CoupledSystem::container(int damper, double t, double u, double u_dot) const {
-  (void)damper;
-  (void)t;
-  return {u * direction_, u_dot * direction_};
+ContainerKinematics CoupledSystem::container(double u, double u_dot, double theta,
+                                             double theta_dot) const {
+  ContainerKinematics k;
+  k.position = u * direction_;
+  k.velocity = u_dot * direction_;
+  if (theta != 0.0 || theta_dot != 0.0) {
+    // Rodrigues: R e = e cos(theta) + (a x e) sin(theta) + a (a . e)(1 - cos(theta)).
+    const Vec3& a = rotation_axis_;
+    const double c = std::cos(theta), s = std::sin(theta);
+    auto turn = [&](Vec3 e) { return c * e + s * cross(a, e) + (dot(a, e) * (1 - c)) * a; };
+    k.axis_x = turn({1, 0, 0});
+    k.axis_y = turn({0, 1, 0});
+    k.axis_z = turn({0, 0, 1});
+    k.angular_velocity = theta_dot * a;
+  }
+  return k;
 }
 
 double CoupledSystem::structure_kinetic() const {
@@ -119,14 +135,19 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
   double power = 0;
   last_.dissipated_normal = last_.dissipated_tangential = last_.particle_kinetic = 0;
   for (std::size_t k = 0; k < engines_.size(); ++k) {
-    const auto row = structure_.attachment_translation.row(static_cast<int>(k));
-    const double u = drive_.base_displacement(t) + row.dot(integrator_->q);
-    const double u_dot = drive_.base_velocity(t) + row.dot(integrator_->v);
-    const ContainerKinematics kin = container(static_cast<int>(k), t, u + lead * u_dot, u_dot);
+    const int row = static_cast<int>(k);
+    const auto translation = structure_.attachment_translation.row(row);
+    const auto rotation = structure_.attachment_rotation.row(row);
+    const double u = drive_.base_displacement(t) + translation.dot(integrator_->q);
+    const double u_dot = drive_.base_velocity(t) + translation.dot(integrator_->v);
+    const double theta = rotation.dot(integrator_->q), theta_dot = rotation.dot(integrator_->v);
+    const ContainerKinematics kin =
+        container(u + lead * u_dot, u_dot, theta + lead * theta_dot, theta_dot);
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
     if (totals.flags) check(totals, k, t, kin.position);
     force_along[k] = dot(totals.wall_force, direction_);
-    power -= dot(totals.wall_force, kin.velocity);
+    torque_[k] = dot(totals.wall_torque, rotation_axis_);
+    power -= dot(totals.wall_force, kin.velocity) + dot(totals.wall_torque, kin.angular_velocity);
     last_.dissipated_normal += totals.dissipated_normal;
     last_.dissipated_tangential += totals.dissipated_tangential;
     last_.particle_kinetic += totals.kinetic;
@@ -153,7 +174,7 @@ void CoupledSystem::step_prescribed() {
   last_.displacement = u;
   last_.velocity = u_dot;
   for (auto& e : engines_) {
-    const ContainerKinematics kin{u * m.axis, u_dot * m.axis};
+    const ContainerKinematics kin = translating(u * m.axis, u_dot * m.axis);
     const StepTotals& totals = e->compute(kin, dt_);
     if (totals.flags)
       check(totals, static_cast<std::size_t>(&e - engines_.data()), time_, kin.position);
@@ -175,11 +196,15 @@ void CoupledSystem::step_explicit(bool impulse) {
   last_.velocity = response(integrator_->v);
   // The DEM sub-steps see the container extrapolated linearly over the coupling interval.
   std::fill(force_sum_.begin(), force_sum_.end(), 0.0);
+  std::fill(torque_sum_.begin(), torque_sum_.end(), 0.0);
   double power = 0, dissipated_n = 0, dissipated_t = 0;
   for (int s = 0; s < every_; ++s) {
     power += compute_dampers(t0 + s * dt_, s * dt_, force_);
     for (auto& e : engines_) e->accept();
-    for (std::size_t k = 0; k < force_.size(); ++k) force_sum_[k] += force_[k];
+    for (std::size_t k = 0; k < force_.size(); ++k) {
+      force_sum_[k] += force_[k];
+      torque_sum_[k] += torque_[k];
+    }
     dissipated_n += last_.dissipated_normal;
     dissipated_t += last_.dissipated_tangential;
   }
@@ -189,6 +214,8 @@ void CoupledSystem::step_explicit(bool impulse) {
   for (std::size_t k = 0; k < force_sum_.size(); ++k) {
     const double mean = force_sum_[k] / every_;
     damper_load_ += mean * structure_.attachment_translation.row(static_cast<int>(k)).transpose();
+    damper_load_ += (torque_sum_[k] / every_) *
+                    structure_.attachment_rotation.row(static_cast<int>(k)).transpose();
     total_force += mean;
   }
   q_start_ = integrator_->q;
@@ -216,6 +243,7 @@ void CoupledSystem::step_tight() {
     last_.time = time_;
     const double power = compute_dampers(time_, 0.0, force_);
     pending_force_ = force_;
+    pending_torque_ = torque_;
     pending_record_ = last_;
     pending_record_.power_in = power;
     pending_ = true;
@@ -238,9 +266,14 @@ void CoupledSystem::step_tight() {
     integrator_->q = q_start_;
     integrator_->v = v_start_;
     damper_load_ = load_;
-    for (std::size_t k = 0; k < guess_.size(); ++k)
+    for (std::size_t k = 0; k < guess_.size(); ++k) {
+      const int row = static_cast<int>(k);
       damper_load_ += 0.5 * (pending_force_[k] + guess_[k]) *
-                      structure_.attachment_translation.row(static_cast<int>(k)).transpose();
+                      structure_.attachment_translation.row(row).transpose();
+      // The torque rides along with the last evaluation (the force drives the iteration).
+      damper_load_ += 0.5 * (pending_torque_[k] + torque_[k]) *
+                      structure_.attachment_rotation.row(row).transpose();
+    }
     integrator_->step(dt_, damper_load_);
     power = compute_dampers(t0 + dt_, 0.0, force_);
     double change = 0, scale = 1e-12;
@@ -256,6 +289,7 @@ void CoupledSystem::step_tight() {
   computed.power_in = power;
   last_ = record;
   pending_force_ = force_;
+  pending_torque_ = torque_;
   pending_record_ = computed;
   time_ = t0 + dt_;
 }

@@ -67,7 +67,8 @@ class CoupledSystem {
   void restore(const StateArrays& state);
 
  private:
-  ContainerKinematics container(int damper, double t, double u, double u_dot) const;
+  // Container k at displacement u (m) and rotation theta (rad) about rotation_axis_.
+  ContainerKinematics container(double u, double u_dot, double theta, double theta_dot) const;
   // Generalised external load at t, written into `load` (no allocation in the step loop).
   void external_load(double t, Eigen::VectorXd& load) const;
   double response(const Eigen::VectorXd& q) const;
@@ -81,6 +82,7 @@ class CoupledSystem {
   CouplingSpec coupling_;
   IntegratorKind integrator_kind_;
   Vec3 direction_;
+  Vec3 rotation_axis_;  // beam: axis x direction, about which a node's slope turns a damper
   std::optional<MotionSpec> prescribed_;
   LinearStructure structure_;
   std::unique_ptr<StructureIntegrator> integrator_;
@@ -93,7 +95,7 @@ class CoupledSystem {
   StepRecord last_, pending_record_;
   long long particle_steps_ = 0;
   // Work buffers of the step loop, sized once.
-  std::vector<double> force_, force_sum_, guess_;
+  std::vector<double> force_, force_sum_, guess_, torque_, torque_sum_, pending_torque_;
   Eigen::VectorXd load_, damper_load_, q_start_, v_start_;
 };
 

@@ -210,7 +210,8 @@ EngineConfig shaken_scene(int threads) {
 // Container centre at step n: 2 mm amplitude at 30 Hz along x.
 ContainerKinematics shaken(int n, double dt) {
   const double omega = 2 * kPi * 30, amplitude = 2e-3, t = n * dt;
-  return {{amplitude * std::sin(omega * t), 0, 0}, {amplitude * omega * std::cos(omega * t), 0, 0}};
+  return translating({amplitude * std::sin(omega * t), 0, 0},
+                     {amplitude * omega * std::cos(omega * t), 0, 0});
 }
 
 // Steps n = first .. last-1; appends the totals of each step to `log`.

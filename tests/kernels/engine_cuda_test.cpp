@@ -94,7 +94,8 @@ EngineConfig make_scene(const SceneSpec& s, Backend backend) {
 // The container shaken along x: 2 mm at 50 Hz (peak 0.63 m/s).
 ContainerKinematics container_at(int step) {
   const double omega = 2 * kPi * 50, amplitude = 0.002, t = step * kDt;
-  return {{amplitude * std::sin(omega * t), 0, 0}, {amplitude * omega * std::cos(omega * t), 0, 0}};
+  return translating({amplitude * std::sin(omega * t), 0, 0},
+                     {amplitude * omega * std::cos(omega * t), 0, 0});
 }
 
 struct Trace {

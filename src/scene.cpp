@@ -180,8 +180,14 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   if (wanted == Backend::cuda && !have_gpu)
     throw InputError(deck.where("solver.backend"), "solver.backend",
                      "\"cuda\" requested but no usable CUDA device (" + gpu + ")");
-  s.backend = wanted == Backend::automatic ? (have_gpu ? Backend::cuda : Backend::cpu) : wanted;
-  s.backend_reason = wanted == Backend::automatic ? "auto: " + gpu : "requested";
+  // "auto" stays on the CPU until the CUDA engine has been checked against it on a GPU
+  // (tests/kernels/engine_cuda_test.cpp); "cuda" selects it explicitly.
+  s.backend = wanted == Backend::automatic ? Backend::cpu : wanted;
+  s.backend_reason = wanted != Backend::automatic ? "requested"
+                     : have_gpu ? "auto: CPU until the CUDA backend is validated on a GPU; "
+                                  "--backend cuda uses " +
+                                      gpu
+                                : "auto: " + gpu;
 
   ContactParams params;
   params.friction = contact.friction;

@@ -38,6 +38,14 @@ struct HistoryArrays {
   std::uint8_t* wall_mask_out;
 };
 
+// The history pointers of a step: read `in`, write `out` (either backend's buffers).
+template <class In, class Out>
+HistoryArrays history_view(const In& in, Out& out) {
+  return {in.neighbour.data(),       out.neighbour.data(), in.neighbour_mask.data(),
+          out.neighbour_mask.data(), in.wall.data(),       out.wall.data(),
+          in.wall_mask.data(),       out.wall_mask.data()};
+}
+
 struct ParticleStepArgs {
   int count;
   double dt;
@@ -86,16 +94,15 @@ PDSIM_HD void store3(double* a, int k, Vec3 v) {
 
 // Force and torque of one contact on the particle. `normal` points from the other body to this
 // particle; `vrel` is the velocity of this particle's contact point relative to the other's.
-template <class V>
 struct ContactOutcome {
   Vec3 force, torque;
 };
 
 template <class V>
-PDSIM_HD ContactOutcome<V> contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 omega_rel,
-                                   double radius, double radius_eff, double mass_eff, bool wall,
-                                   Vec3* history, double dt, const ContactParams& p, double share,
-                                   double& dissipated_normal, double& dissipated_tangential) {
+PDSIM_HD ContactOutcome contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 omega_rel,
+                                double radius, double radius_eff, double mass_eff, bool wall,
+                                Vec3* history, double dt, const ContactParams& p, double share,
+                                double& dissipated_normal, double& dissipated_tangential) {
   const NormalResponse r = V::Normal::respond(overlap, radius_eff, mass_eff, wall, p);
   const double vn = dot(vrel, normal);
   const Vec3 vt = vrel - vn * normal;
@@ -104,7 +111,7 @@ PDSIM_HD ContactOutcome<V> contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 
   double tangential_loss = 0;
   const Vec3 ft = V::Tangential::force(history, normal, vt, r, fn, dt, p, tangential_loss);
   dissipated_tangential += share * tangential_loss;
-  ContactOutcome<V> out{fn * normal + ft, cross(-radius * normal, ft)};
+  ContactOutcome out{fn * normal + ft, cross(-radius * normal, ft)};
   if constexpr (V::kRolling) {
     // Constant directional rolling resistance: |T| = mu_r R* |Fn| against the relative spin.
     const double spin = norm(omega_rel);

@@ -179,12 +179,10 @@ class Runner {
     PeriodTracker tracker(2 * kPi * frequency, samples);
     const SettleSpec& settle = x.settle;
     const bool fixed = x.kind == ExcitationKind::sine || (prescribed && x.duration > 0);
-    const int fixed_periods =
-        fixed ? std::max(
-                    1, static_cast<int>(std::lround(
-                           (x.kind == ExcitationKind::sine ? x.duration : x.duration) * frequency)))
-              : 0;
-    const int max_periods = fixed ? fixed_periods : settle.max_periods;
+    // A fixed run (sine, or prescribed with a duration) takes whole periods of its duration.
+    const int max_periods = fixed
+                                ? std::max(1, static_cast<int>(std::lround(x.duration * frequency)))
+                                : settle.max_periods;
     bool converged = false;
     while (tracker.periods() < max_periods) {
       for (int s = 0; s < samples; ++s) {

@@ -282,7 +282,6 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   if (x.kind == ExcitationKind::sine) f = {x.frequency};
   if (x.kind == ExcitationKind::prescribed && f.empty()) f = {x.motion.frequency};
   if (!f.empty()) {
-    s.lowest_frequency = *std::min_element(f.begin(), f.end());
     s.highest_frequency = *std::max_element(f.begin(), f.end());
   }
   if (deck.dampers.empty()) {

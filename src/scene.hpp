@@ -21,13 +21,11 @@ struct Scene {
   std::vector<DamperScene> dampers;
   Backend backend = Backend::cpu;
   std::string backend_reason;
-  double dt = 0;                // s, largest step the solver may take
-  double dt_limit = 0;          // s, stability/accuracy limit for an explicit dt
-  double contact_time = 0;      // s, linear: exact binary contact time; hertz: estimate at 1 m/s
-  double rayleigh_time = 0;     // s, hertz only
-  std::string dt_basis;         // how dt was chosen
-  double structure_mass = 0;    // kg (sdof mass, beam total mass)
-  double lowest_frequency = 0;  // Hz, of the excitation
+  double dt = 0;             // s, largest step the solver may take
+  double dt_limit = 0;       // s, stability/accuracy limit for an explicit dt
+  double contact_time = 0;   // s, linear: exact binary contact time; hertz: estimate at 1 m/s
+  double rayleigh_time = 0;  // s, hertz only
+  std::string dt_basis;      // how dt was chosen
   double highest_frequency = 0;
   int threads = 0;
 };

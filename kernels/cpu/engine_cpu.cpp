@@ -254,9 +254,7 @@ class CpuEngine final : public DemEngine {
     a.neighbours = neighbours_.data();
     a.neighbour_count = neighbour_count_.data();
     a.max_neighbours = max_neighbours_;
-    a.history = {hin.neighbour.data(),       hout.neighbour.data(), hin.neighbour_mask.data(),
-                 hout.neighbour_mask.data(), hin.wall.data(),       hout.wall.data(),
-                 hin.wall_mask.data(),       hout.wall_mask.data()};
+    a.history = history_view(hin, hout);
     a.x_build = x_build_.data();
     a.y_build = y_build_.data();
     a.z_build = z_build_.data();

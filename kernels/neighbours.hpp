@@ -41,7 +41,9 @@ inline double default_skin(double r_min, double configured) {
 inline int neighbour_slots(double r_min, double r_max, double skin) {
   const double reach = 2 * r_max + skin + r_min;
   const int bound = static_cast<int>(ceil(0.7405 * pow(reach / r_min, 3)));
-  return bound < 1 ? 1 : (bound > 64 ? 64 : bound);
+  // A multiple of kSlotGroup, so that padded lists fit (64 is the width of the slot masks).
+  const int rounded = (bound + kSlotGroup - 1) / kSlotGroup * kSlotGroup;
+  return rounded < kSlotGroup ? kSlotGroup : (rounded > 64 ? 64 : rounded);
 }
 
 // Grid around the container at `centre`, one cell of margin on every side.
@@ -78,6 +80,13 @@ struct NeighbourBuildArgs {
   std::uint64_t* new_mask;
   double* new_history;
 };
+
+// Fills the list of particle i from `count` up to the next multiple of kSlotGroup with i
+// itself, so that slot tests may read whole groups (the padding is masked off).
+PDSIM_HD void pad_slots(int i, int count, int max_neighbours, std::int32_t* neighbours) {
+  for (int k = count; k % kSlotGroup != 0 && k < max_neighbours; ++k)
+    neighbours[i * max_neighbours + k] = i;
+}
 
 // Lists every particle within reach + skin of particle i (scanning the 27 cells in a fixed
 // order, so the list does not depend on threads); returns false on list overflow.
@@ -118,6 +127,7 @@ PDSIM_HD bool build_neighbours_of(int i, const NeighbourBuildArgs& a) {
     }
   }
   a.neighbour_count[i] = n;
+  pad_slots(i, n, a.max_neighbours, a.neighbours);
   if (a.new_mask) {
     // Carry the tangential history of contacts that survive the rebuild.
     const int old_i = a.old_index[i];

@@ -46,6 +46,17 @@ HistoryArrays history_view(const In& in, Out& out) {
           in.wall_mask.data(),       out.wall_mask.data()};
 }
 
+// Mass properties of a solid sphere (I = 2/5 m r^2): one expression for both backends and for
+// restored runs, so that they agree bitwise.
+struct SphereMass {
+  double mass, inertia, inv_mass, inv_inertia;
+};
+inline SphereMass sphere_mass(double radius, double density) {
+  const double mass = density * 4.0 / 3.0 * kPi * radius * radius * radius;
+  const double inertia = 0.4 * mass * radius * radius;
+  return {mass, inertia, 1.0 / mass, 1.0 / inertia};
+}
+
 struct ParticleStepArgs {
   int count;
   double dt;
@@ -53,7 +64,8 @@ struct ParticleStepArgs {
   const double* radius;       // polydisperse only
   const double* inv_mass;     // polydisperse only
   const double* inv_inertia;  // polydisperse only
-  double mono_radius, mono_inv_mass, mono_inv_inertia;
+  double mono_radius;         // monodisperse: every particle's radius and mass
+  SphereMass mono;
   const std::int32_t* neighbours;  // count x max_neighbours partner indices
   const std::int32_t* neighbour_count;
   int max_neighbours;
@@ -121,81 +133,103 @@ PDSIM_HD ContactOutcome contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 ome
   return out;
 }
 
+// Index of the lowest set bit of a non-zero mask.
+PDSIM_HD int lowest_bit(std::uint64_t m) {
+#if defined(__CUDA_ARCH__)
+  return __ffsll(static_cast<long long>(m)) - 1;
+#else
+  return __builtin_ctzll(m);
+#endif
+}
+
+// Sets kNonFinite when the reduced totals show a non-finite state. Positions advance by finite
+// velocities, so a non-finite state always shows in the kinetic energy; checking the sum once
+// per step keeps the test out of the per-particle work.
+PDSIM_HD void flag_non_finite(ParticleContribution& totals) {
+  if (!(totals.kinetic < 1e300)) totals.flags |= kNonFinite;
+}
+
+// Radius and mass properties of particle i.
+struct Body {
+  double radius, mass, inertia, inv_mass, inv_inertia;
+};
 template <class V>
-PDSIM_HD ParticleContribution step_particle(int i, const ParticleStepArgs& a) {
+PDSIM_HD Body body(int i, const ParticleStepArgs& a) {
+  if constexpr (V::kPolydisperse)
+    return {a.radius[i], 1.0 / a.inv_mass[i], 1.0 / a.inv_inertia[i], a.inv_mass[i],
+            a.inv_inertia[i]};
+  else
+    return {a.mono_radius, a.mono.mass, a.mono.inertia, a.mono.inv_mass, a.mono.inv_inertia};
+}
+
+// Force and torque on a particle from a group of its contacts.
+struct Load {
+  Vec3 force, torque;
+};
+
+// Particle-particle contacts of particle i, over the neighbour slots set in `touching`. The
+// heavy contact paths are out of line on the CPU (PDSIM_COLD) and reread the particle's state,
+// so that the hot loop of step_particle keeps its registers.
+template <class V>
+PDSIM_COLD Load neighbour_contacts(int i, std::uint64_t touching, const ParticleStepArgs& a,
+                                   ParticleContribution& sum) {
+  const Body b = body<V>(i, a);
   const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
   const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
   const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
-  double radius, inv_mass, inv_inertia;
-  if constexpr (V::kPolydisperse) {
-    radius = a.radius[i];
-    inv_mass = a.inv_mass[i];
-    inv_inertia = a.inv_inertia[i];
-  } else {
-    radius = a.mono_radius;
-    inv_mass = a.mono_inv_mass;
-    inv_inertia = a.mono_inv_inertia;
-  }
-  const double mass = 1.0 / inv_mass;
-  constexpr bool kHistory = V::Tangential::kHistory;
-  ParticleContribution c;
-  Vec3 force, torque;
-
-  // Particle-particle contacts over the neighbour list.
   const int base = i * a.max_neighbours;
-  const int n_count = a.neighbour_count[i];
-  std::uint64_t mask_out = 0;
   std::uint64_t mask_in = 0;
-  if constexpr (kHistory) mask_in = a.history.neighbour_mask_in[i];
-  for (int k = 0; k < n_count; ++k) {
+  if constexpr (V::Tangential::kHistory) mask_in = a.history.neighbour_mask_in[i];
+  Load load;
+  for (std::uint64_t m = touching; m; m &= m - 1) {
+    const int k = lowest_bit(m);
     const int j = a.neighbours[base + k];
     const Vec3 d{x.x - a.in.x[j], x.y - a.in.y[j], x.z - a.in.z[j]};
     double radius_j, mass_eff;
     if constexpr (V::kPolydisperse) {
       radius_j = a.radius[j];
-      mass_eff = 1.0 / (inv_mass + a.inv_mass[j]);
+      mass_eff = 1.0 / (b.inv_mass + a.inv_mass[j]);
     } else {
-      radius_j = radius;
-      mass_eff = 0.5 * mass;
+      radius_j = b.radius;
+      mass_eff = 0.5 * b.mass;
     }
-    const double reach = radius + radius_j;
-    const double dist_sq = dot(d, d);
-    if (dist_sq >= reach * reach) continue;
-    const double dist = sqrt(dist_sq);
+    const double reach = b.radius + radius_j;
+    const double dist = sqrt(dot(d, d));
     const Vec3 normal = (1.0 / dist) * d;
     const Vec3 vj{a.in.vx[j], a.in.vy[j], a.in.vz[j]};
     const Vec3 wj{a.in.wx[j], a.in.wy[j], a.in.wz[j]};
-    const Vec3 vrel = v - vj - cross(radius * w + radius_j * wj, normal);
+    const Vec3 vrel = v - vj - cross(b.radius * w + radius_j * wj, normal);
     Vec3 xi{};
-    if constexpr (kHistory) {
+    if constexpr (V::Tangential::kHistory) {
       if (mask_in >> k & 1u) xi = load3(a.history.neighbour_in, base + k);
     }
-    const auto out =
-        contact<V>(reach - dist, normal, vrel, w - wj, radius, radius * radius_j / reach, mass_eff,
-                   false, &xi, a.dt, a.contact, 0.5, c.dissipated_normal, c.dissipated_tangential);
-    if constexpr (kHistory) {
-      store3(a.history.neighbour_out, base + k, xi);
-      mask_out |= std::uint64_t{1} << k;
-    }
-    force += out.force;
-    torque += out.torque;
+    const auto out = contact<V>(reach - dist, normal, vrel, w - wj, b.radius,
+                                b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
+                                0.5, sum.dissipated_normal, sum.dissipated_tangential);
+    if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, base + k, xi);
+    load.force += out.force;
+    load.torque += out.torque;
   }
-  if constexpr (kHistory) a.history.neighbour_mask_out[i] = mask_out;
+  return load;
+}
 
-  // Container walls, in the container frame. A cheap bounding test per axis skips the walls of
-  // particles away from them.
+// Contacts of particle i with the container walls, for a particle that passed the bounding
+// test. `offset` is its centre relative to the container centre, `local` the same in the
+// container frame. Adds the reaction on the container to `sum`.
+template <class V>
+PDSIM_COLD Load wall_contacts(int i, Vec3 offset, Vec3 local, const ParticleStepArgs& a,
+                              ParticleContribution& sum) {
+  const Body b = body<V>(i, a);
+  const double radius = b.radius;
+  const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
+  const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
   const ContainerKinematics& box = a.container;
-  const Vec3 offset = x - box.position;
-  Vec3 local = offset;
-  Vec3 v_wall_rel = v - box.velocity;
-  if constexpr (V::kRotating) {
-    local = {dot(offset, box.axis_x), dot(offset, box.axis_y), dot(offset, box.axis_z)};
-    v_wall_rel -= cross(box.angular_velocity, offset);  // wall velocity at the particle
-  }
   const Vec3 h = a.geometry.half_size;
-  Vec3 wall_force;
-  std::uint8_t wall_mask_in = 0, wall_mask_out = 0;
-  if constexpr (kHistory) wall_mask_in = a.history.wall_mask_in[i];
+  Vec3 v_wall_rel = v - box.velocity;
+  if constexpr (V::kRotating) v_wall_rel -= cross(box.angular_velocity, offset);
+  Load load;
+  std::uint8_t mask_in = 0, mask_out = 0;
+  if constexpr (V::Tangential::kHistory) mask_in = a.history.wall_mask_in[i];
   auto wall = [&](int slot, double gap, Vec3 local_normal) {
     if (gap >= radius) return;
     Vec3 normal = local_normal;
@@ -203,56 +237,139 @@ PDSIM_HD ParticleContribution step_particle(int i, const ParticleStepArgs& a) {
       normal =
           local_normal.x * box.axis_x + local_normal.y * box.axis_y + local_normal.z * box.axis_z;
     Vec3 xi{};
-    if constexpr (kHistory) {
-      if (wall_mask_in >> slot & 1u) xi = load3(a.history.wall_in, i * kWallSlots + slot);
+    if constexpr (V::Tangential::kHistory) {
+      if (mask_in >> slot & 1u) xi = load3(a.history.wall_in, i * kWallSlots + slot);
     }
     const Vec3 vrel = v_wall_rel - cross(radius * w, normal);
-    const auto out = contact<V>(radius - gap, normal, vrel, w, radius, radius, mass, true, &xi,
-                                a.dt, a.contact, 1.0, c.dissipated_normal, c.dissipated_tangential);
-    if constexpr (kHistory) {
+    const auto out =
+        contact<V>(radius - gap, normal, vrel, w, radius, radius, b.mass, true, &xi, a.dt,
+                   a.contact, 1.0, sum.dissipated_normal, sum.dissipated_tangential);
+    if constexpr (V::Tangential::kHistory) {
       store3(a.history.wall_out, i * kWallSlots + slot, xi);
-      wall_mask_out = static_cast<std::uint8_t>(wall_mask_out | (1u << slot));
+      mask_out = static_cast<std::uint8_t>(mask_out | (1u << slot));
     }
-    wall_force += out.force;
-    torque += out.torque;
+    load.force += out.force;
+    load.torque += out.torque;
+    sum.wall_force -= out.force;
     // The force acts on the wall at the foot of the normal through the particle centre.
-    if constexpr (V::kRotating) c.wall_torque -= cross(offset - gap * normal, out.force);
+    if constexpr (V::kRotating) sum.wall_torque -= cross(offset - gap * normal, out.force);
   };
-  double escape;  // how far outside the container the centre may go before the run stops
+  // A centre further than one radius outside the container stops the run.
+  auto escaped = [&](double beyond) {
+    if (beyond > radius) sum.flags |= kEscaped;
+  };
   if constexpr (V::kShape == WallShape::box) {
     if (fabs(local.x) > h.x - radius) {
       wall(0, local.x + h.x, {1, 0, 0});
       wall(1, h.x - local.x, {-1, 0, 0});
+      escaped(fabs(local.x) - h.x);
     }
     if (fabs(local.y) > h.y - radius) {
       wall(2, local.y + h.y, {0, 1, 0});
       wall(3, h.y - local.y, {0, -1, 0});
+      escaped(fabs(local.y) - h.y);
     }
-    escape = max_of(fabs(local.x) - h.x, fabs(local.y) - h.y);
   } else {
     const double rho_sq = local.x * local.x + local.y * local.y;
     const double inner = a.geometry.radius - radius;
     if (rho_sq > inner * inner) {
       const double rho = sqrt(rho_sq);
       wall(0, a.geometry.radius - rho, {-local.x / rho, -local.y / rho, 0});
+      escaped(rho - a.geometry.radius);
     }
-    escape = sqrt(rho_sq) - a.geometry.radius;
   }
   if (fabs(local.z) > h.z - radius) {
     wall(4, local.z + h.z, {0, 0, 1});
     wall(5, h.z - local.z, {0, 0, -1});
+    escaped(fabs(local.z) - h.z);
   }
-  escape = max_of(escape, fabs(local.z) - h.z);
-  if constexpr (kHistory) a.history.wall_mask_out[i] = wall_mask_out;
-  force += wall_force;
-  c.wall_force = -wall_force;
+  if constexpr (V::Tangential::kHistory) a.history.wall_mask_out[i] = mask_out;
+  return load;
+}
+
+// Bit k set when neighbour slot k of particle i overlaps it. On the host, slots are tested
+// kSlotGroup at a time with GCC vector extensions (SSE2 pairs, or one AVX register when built
+// for it); lists are padded to a multiple of kSlotGroup with the particle itself, and the
+// padding bits are masked off. CUDA threads test one slot at a time.
+template <class V>
+PDSIM_HD std::uint64_t touching_slots(int i, Vec3 x, double radius, const ParticleStepArgs& a) {
+  const int n = a.neighbour_count[i];
+  const std::int32_t* slots = a.neighbours + i * a.max_neighbours;
+  std::uint64_t touching = 0;
+#if defined(__CUDACC__) || !defined(__GNUC__)
+  for (int k = 0; k < n; ++k) {
+    const int j = slots[k];
+    const double dx = x.x - a.in.x[j], dy = x.y - a.in.y[j], dz = x.z - a.in.z[j];
+    const double reach = V::kPolydisperse ? radius + a.radius[j] : 2 * radius;
+    if (dx * dx + dy * dy + dz * dz < reach * reach) touching |= std::uint64_t{1} << k;
+  }
+#else
+  static_assert(kSlotGroup == 4, "the vector code below tests four slots");
+  using Double4 = double __attribute__((vector_size(4 * sizeof(double))));
+  for (int k = 0; k < n; k += kSlotGroup) {
+    const int j0 = slots[k], j1 = slots[k + 1], j2 = slots[k + 2], j3 = slots[k + 3];
+    const Double4 dx = x.x - Double4{a.in.x[j0], a.in.x[j1], a.in.x[j2], a.in.x[j3]};
+    const Double4 dy = x.y - Double4{a.in.y[j0], a.in.y[j1], a.in.y[j2], a.in.y[j3]};
+    const Double4 dz = x.z - Double4{a.in.z[j0], a.in.z[j1], a.in.z[j2], a.in.z[j3]};
+    Double4 reach = Double4{} + 2 * radius;
+    if constexpr (V::kPolydisperse)
+      reach = radius + Double4{a.radius[j0], a.radius[j1], a.radius[j2], a.radius[j3]};
+    const auto hit = dx * dx + dy * dy + dz * dz < reach * reach;  // lanes: -1 or 0
+    touching |=
+        static_cast<std::uint64_t>((hit[0] & 1) | (hit[1] & 2) | (hit[2] & 4) | (hit[3] & 8)) << k;
+  }
+  if (n < 64) touching &= (std::uint64_t{1} << n) - 1;
+#endif
+  return touching;
+}
+
+// One particle's step, adding its contribution to `sum`. The common case (a few list entries,
+// no contact, away from the walls) stays in this short path.
+template <class V>
+PDSIM_HOT void step_particle(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
+  const Body b = body<V>(i, a);
+  const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
+  Vec3 force, torque;
+
+  // Which neighbour-list entries touch: most do not, so this test is kept minimal.
+  const std::uint64_t touching = touching_slots<V>(i, x, b.radius, a);
+  if (touching) {
+    const Load l = neighbour_contacts<V>(i, touching, a, sum);
+    force = l.force;
+    torque = l.torque;
+  }
+  if constexpr (V::Tangential::kHistory) a.history.neighbour_mask_out[i] = touching;
+
+  // Bounding test against the container (a centre outside it passes too, for the guard).
+  const Vec3 offset = x - a.container.position;
+  Vec3 local = offset;
+  if constexpr (V::kRotating)
+    local = {dot(offset, a.container.axis_x), dot(offset, a.container.axis_y),
+             dot(offset, a.container.axis_z)};
+  const Vec3 inner = a.geometry.half_size - Vec3{b.radius, b.radius, b.radius};
+  bool near_wall = fabs(local.z) > inner.z;
+  if constexpr (V::kShape == WallShape::box) {
+    near_wall |= (fabs(local.x) > inner.x) | (fabs(local.y) > inner.y);
+  } else {
+    const double inside = a.geometry.radius - b.radius;
+    near_wall |= local.x * local.x + local.y * local.y > inside * inside;
+  }
+  if (near_wall) {
+    const Load l = wall_contacts<V>(i, offset, local, a, sum);
+    force += l.force;
+    torque += l.torque;
+  } else if constexpr (V::Tangential::kHistory) {
+    a.history.wall_mask_out[i] = 0;
+  }
 
   // Semi-implicit Euler (symplectic), fused into the force pass.
-  Vec3 accel = inv_mass * force;
+  const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
+  const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
+  Vec3 accel = b.inv_mass * force;
   if constexpr (V::kGravity) accel += a.gravity;
   const Vec3 v_new = v + a.dt * accel;
   const Vec3 x_new = x + a.dt * v_new;
-  const Vec3 w_new = w + (a.dt * inv_inertia) * torque;
+  const Vec3 w_new = w + (a.dt * b.inv_inertia) * torque;
   a.out.x[i] = x_new.x;
   a.out.y[i] = x_new.y;
   a.out.z[i] = x_new.z;
@@ -263,13 +380,9 @@ PDSIM_HD ParticleContribution step_particle(int i, const ParticleStepArgs& a) {
   a.out.wy[i] = w_new.y;
   a.out.wz[i] = w_new.z;
 
-  c.kinetic = 0.5 * mass * dot(v_new, v_new) + 0.5 / inv_inertia * dot(w_new, w_new);
+  sum.kinetic += 0.5 * (b.mass * dot(v_new, v_new) + b.inertia * dot(w_new, w_new));
   const Vec3 drift{x_new.x - a.x_build[i], x_new.y - a.y_build[i], x_new.z - a.z_build[i]};
-  c.drift_sq = dot(drift, drift);
-  if (!(fabs(x_new.x) + fabs(x_new.y) + fabs(x_new.z) + fabs(c.kinetic) < 1e300))
-    c.flags |= kNonFinite;
-  if (escape > radius) c.flags |= kEscaped;
-  return c;
+  sum.drift_sq = max_of(sum.drift_sq, dot(drift, drift));
 }
 
 }  // namespace pdsim

@@ -12,6 +12,16 @@
 #define PDSIM_HD inline
 #endif
 
+// Hot per-particle functions: always inlined, so that the launcher's loop sees the whole step.
+// Rarely taken, heavy paths: out of line on the host so that the hot loop keeps its registers.
+#if defined(__CUDACC__)
+#define PDSIM_HOT PDSIM_HD
+#define PDSIM_COLD PDSIM_HD
+#else
+#define PDSIM_HOT inline __attribute__((always_inline))
+#define PDSIM_COLD __attribute__((noinline))
+#endif
+
 namespace pdsim {
 
 constexpr double kPi = 3.14159265358979323846;

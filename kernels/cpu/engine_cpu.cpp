@@ -43,14 +43,6 @@ void permute(std::vector<T>& a, const std::vector<std::int32_t>& order, std::siz
   a.swap(b);
 }
 
-// Inverse mass and inverse moment of inertia (solid sphere, I = 2/5 m r^2) of one ball: one
-// expression for construction and restore, so that a restored run continues bitwise.
-void mass_properties(double radius, double density, double& inv_mass, double& inv_inertia) {
-  const double mass = density * 4.0 / 3.0 * kPi * radius * radius * radius;
-  inv_mass = 1.0 / mass;
-  inv_inertia = 1.0 / (0.4 * mass * radius * radius);
-}
-
 template <class V>
 class CpuEngine final : public DemEngine {
  public:
@@ -67,8 +59,7 @@ class CpuEngine final : public DemEngine {
     radius_ = c.radius;
     inv_mass_.resize(n);
     inv_inertia_.resize(n);
-    for (std::size_t i = 0; i < n; ++i)
-      mass_properties(radius_[i], c.density, inv_mass_[i], inv_inertia_[i]);
+    set_mass_properties();
     id_.resize(n);
     std::iota(id_.begin(), id_.end(), 0);
     set_particles(c.particles);
@@ -80,9 +71,10 @@ class CpuEngine final : public DemEngine {
     const int blocks = (count_ + kBlock - 1) / kBlock;
     block_totals_.assign(static_cast<std::size_t>(blocks), StepTotals{});
     auto run_block = [&](int b) {
+      const ParticleStepArgs local = a;  // private: its pointers can stay in registers
       StepTotals sum;
       const int end = std::min(count_, (b + 1) * kBlock);
-      for (int i = b * kBlock; i < end; ++i) accumulate(sum, step_particle<V>(i, a));
+      for (int i = b * kBlock; i < end; ++i) step_particle<V>(i, local, sum);
       block_totals_[static_cast<std::size_t>(b)] = sum;
     };
     if (blocks == 1 || threads_ == 1) {
@@ -94,6 +86,7 @@ class CpuEngine final : public DemEngine {
     }
     totals_ = StepTotals{};
     for (const auto& t : block_totals_) accumulate(totals_, t);
+    flag_non_finite(totals_);
     return totals_;
   }
 
@@ -197,8 +190,7 @@ class CpuEngine final : public DemEngine {
     auto to_int = [](const std::vector<double>& a, auto& out) { out.assign(a.begin(), a.end()); };
     to_int(get("id"), id_);
     radius_ = get("radius");
-    for (std::size_t i = 0; i < radius_.size(); ++i)
-      mass_properties(radius_[i], config_.density, inv_mass_[i], inv_inertia_[i]);
+    set_mass_properties();
     HistoryBuffer& h = history_[current_];
     h.neighbour = get("history");
     h.wall = get("wall_history");
@@ -211,6 +203,12 @@ class CpuEngine final : public DemEngine {
     to_int(get("neighbours"), neighbours_);
     to_int(get("partner_id"), partner_id_);
     to_int(get("neighbour_count"), neighbour_count_);
+    if (max_neighbours_ % kSlotGroup != 0)
+      throw SimulationError("checkpoint written by an older pdsim (neighbour lists of " +
+                            std::to_string(max_neighbours_) + " slots); rerun without --resume");
+    for (int i = 0; i < count_; ++i)
+      pad_slots(i, neighbour_count_[static_cast<std::size_t>(i)], max_neighbours_,
+                neighbours_.data());
     x_build_ = get("x_build");
     y_build_ = get("y_build");
     z_build_ = get("z_build");
@@ -235,6 +233,14 @@ class CpuEngine final : public DemEngine {
   }
 
  private:
+  void set_mass_properties() {
+    for (std::size_t i = 0; i < radius_.size(); ++i) {
+      const SphereMass m = sphere_mass(radius_[i], config_.density);
+      inv_mass_[i] = m.inv_mass;
+      inv_inertia_[i] = m.inv_inertia;
+    }
+  }
+
   ParticleStepArgs args(const ContainerKinematics& container, double dt) {
     StateBuffer& in = state_[current_];
     StateBuffer& out = state_[current_ ^ 1];
@@ -249,8 +255,7 @@ class CpuEngine final : public DemEngine {
     a.inv_mass = inv_mass_.data();
     a.inv_inertia = inv_inertia_.data();
     a.mono_radius = radius_[0];
-    a.mono_inv_mass = inv_mass_[0];
-    a.mono_inv_inertia = inv_inertia_[0];
+    a.mono = sphere_mass(radius_[0], config_.density);
     a.neighbours = neighbours_.data();
     a.neighbour_count = neighbour_count_.data();
     a.max_neighbours = max_neighbours_;

@@ -144,8 +144,9 @@ __global__ void __launch_bounds__(kBlock)
   auto* part = reinterpret_cast<ParticleContribution*>(storage);
   const int t = static_cast<int>(threadIdx.x);
   const int i = static_cast<int>(blockIdx.x) * kBlock + t;
-  new (part + t)
-      ParticleContribution(i < args.count ? step_particle<V>(i, args) : ParticleContribution{});
+  ParticleContribution c;
+  if (i < args.count) step_particle<V>(i, args, c);
+  new (part + t) ParticleContribution(c);
   reduce_block(part, t);
   if (t == 0) block_totals[blockIdx.x] = part[0];
 }
@@ -164,6 +165,7 @@ __global__ void __launch_bounds__(kBlock)
   if (t == 0) {
     ParticleContribution total = part[0];
     if (*neighbour_overflow) total.flags |= kNeighbourOverflow;
+    flag_non_finite(total);
     *totals = total;
   }
 }
@@ -484,15 +486,13 @@ class CudaEngine final : public DemEngine {
     const std::size_t n = radius_host_.size();
     std::vector<double> inv_mass(n), inv_inertia(n);
     for (std::size_t i = 0; i < n; ++i) {
-      const double r = radius_host_[i];
-      const double mass = config_.density * 4.0 / 3.0 * kPi * r * r * r;
-      inv_mass[i] = 1.0 / mass;
-      inv_inertia[i] = 1.0 / (0.4 * mass * r * r);
+      const SphereMass m = sphere_mass(radius_host_[i], config_.density);
+      inv_mass[i] = m.inv_mass;
+      inv_inertia[i] = m.inv_inertia;
     }
     // A monodisperse scene passes its constants as scalars (all particles share them).
     mono_radius_ = radius_host_[0];
-    mono_inv_mass_ = inv_mass[0];
-    mono_inv_inertia_ = inv_inertia[0];
+    mono_ = sphere_mass(mono_radius_, config_.density);
     radius_.upload(radius_host_, stream_.get(), "radius");
     inv_mass_.upload(inv_mass, stream_.get(), "inv_mass");
     inv_inertia_.upload(inv_inertia, stream_.get(), "inv_inertia");
@@ -539,8 +539,7 @@ class CudaEngine final : public DemEngine {
     a.inv_mass = inv_mass_.data();
     a.inv_inertia = inv_inertia_.data();
     a.mono_radius = mono_radius_;
-    a.mono_inv_mass = mono_inv_mass_;
-    a.mono_inv_inertia = mono_inv_inertia_;
+    a.mono = mono_;
     a.neighbours = neighbours_.data();
     a.neighbour_count = neighbour_count_.data();
     a.max_neighbours = max_neighbours_;
@@ -665,7 +664,8 @@ class CudaEngine final : public DemEngine {
   Stream stream_;  // declared before the arrays, so destroyed after them
   int count_ = 0, max_neighbours_ = 1, current_ = 0;
   double r_min_ = 0, r_max_ = 0, skin_ = 0;
-  double mono_radius_ = 0, mono_inv_mass_ = 0, mono_inv_inertia_ = 0;
+  double mono_radius_ = 0;
+  SphereMass mono_{};
   std::string device_name_;
   std::vector<double> radius_host_;
   DeviceState state_[2];

@@ -65,7 +65,7 @@ Impact pair_impact(NormalModel normal, const ContactParams& contact, double rest
     return 2 * kRadius - norm(p[1].position - p[0].position);
   };
   const ImpactRecord r = follow_impact(*engine, dt_s, overlap, 100000);
-  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double mass = ball_mass(kRadius, kSteelDensity);
   Impact out = measured(r, restitution, mass, r.after[0].velocity.x - r.after[1].velocity.x,
                         r.before[0].velocity.x - r.before[1].velocity.x);
   const Vec3 p_before = mass * (r.before[0].velocity + r.before[1].velocity);
@@ -86,7 +86,7 @@ Impact wall_impact(NormalModel normal, const ContactParams& contact, double rest
     return kRadius - (p[0].position.z + kHalfBox);
   };
   const ImpactRecord r = follow_impact(*engine, dt_s, overlap, 100000);
-  return measured(r, restitution, sphere_mass(kRadius, kSteelDensity), r.after[0].velocity.z,
+  return measured(r, restitution, ball_mass(kRadius, kSteelDensity), r.after[0].velocity.z,
                   r.before[0].velocity.z);
 }
 
@@ -98,7 +98,7 @@ struct Resolution {
 };
 
 TEST_CASE("linear law: restitution and contact time of binary and wall impacts") {
-  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double mass = ball_mass(kRadius, kSteelDensity);
   for (const Resolution res :
        {Resolution{100, 1e-2, 1e-2, 2e-2}, Resolution{1000, 1e-3, 1e-3, 2e-3}})
     for (bool wall : {false, true})
@@ -123,7 +123,7 @@ TEST_CASE("linear law: restitution and contact time of binary and wall impacts")
 }
 
 TEST_CASE("hertz law with Tsuji damping: velocity-independent restitution, Hertz contact time") {
-  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double mass = ball_mass(kRadius, kSteelDensity);
   for (const Resolution res :
        {Resolution{100, 5e-3, 5e-4, 2e-2}, Resolution{1000, 5e-4, 5e-4, 2e-3}})
     for (bool wall : {false, true})

@@ -31,7 +31,7 @@ Oblique floor_impact(NormalModel normal, TangentialModel tangential, double vn, 
       normal == NormalModel::hertz
           ? hertz_contact(kSteelYoung, kSteelPoisson, kRestitution, kFriction)
           : linear_contact(1e5, kRestitution, kFriction);
-  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double mass = ball_mass(kRadius, kSteelDensity);
   const double tc = normal == NormalModel::hertz
                         ? hertz_contact_time(mass, kRadius, contact.hertz_modulus_pw, vn)
                         : linear_contact_time(contact.linear_stiffness, mass, kRestitution);
@@ -95,7 +95,7 @@ TEST_CASE("oblique impact, small vt/vn: Mindlin history stays within the energy 
     CHECK(std::fabs(o.tangential_speed_after) <= vt);
     CHECK(o.tangential_speed_after > 0);
     // Tangential plus rotational kinetic energy after is at most the tangential energy before.
-    const double mass = sphere_mass(kRadius, kSteelDensity);
+    const double mass = ball_mass(kRadius, kSteelDensity);
     const double inertia = 0.4 * mass * kRadius * kRadius;
     const double after = 0.5 * mass * o.tangential_speed_after * o.tangential_speed_after +
                          0.5 * inertia * o.spin_after * o.spin_after;

@@ -30,7 +30,7 @@ EngineConfig resting_on_floor(double alpha, Vec3 local_position, double friction
   c.rotating = true;
   c.gravity = Vec3{0, 0, -kG};
   // Start at the static overlap m g cos(alpha) / k above the floor, in the turned frame.
-  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double mass = ball_mass(kRadius, kSteelDensity);
   const double gap = kRadius - mass * kG * std::cos(alpha) / kStiffness;
   const Vec3 p{local_position.x, local_position.y, -half.z + gap};
   const ContainerKinematics k = tilted(alpha);
@@ -66,7 +66,7 @@ TEST_CASE("a sphere resting off-centre puts the torque x0 m g on the container")
     totals = engine->compute(ContainerKinematics{}, dt);
     engine->accept();
   }
-  const double weight = sphere_mass(kRadius, kSteelDensity) * kG;
+  const double weight = ball_mass(kRadius, kSteelDensity) * kG;
   // The floor carries the weight at (x0, 0, -h): torque (x0, 0, -h) x (0, 0, -W) = (0, x0 W, 0).
   CHECK(totals.wall_force.z == doctest::Approx(-weight).epsilon(1e-6));
   CHECK(totals.wall_torque.y == doctest::Approx(x0 * weight).epsilon(1e-6));

@@ -16,7 +16,7 @@ constexpr double kSteelDensity = 7800.0;  // kg/m^3
 constexpr double kSteelYoung = 2.0e11;    // Pa
 constexpr double kSteelPoisson = 0.3;
 
-inline double sphere_mass(double radius, double density) {
+inline double ball_mass(double radius, double density) {
   return density * 4.0 / 3.0 * kPi * radius * radius * radius;
 }
 

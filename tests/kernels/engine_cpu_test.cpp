@@ -61,7 +61,7 @@ TEST_CASE("elastic gas in a closed box conserves kinetic energy between contacts
   // pair half or an unstable step would make it drift by orders of magnitude more.
   const double radius = 2.5e-3, stiffness = 1e5;
   const Vec3 half{0.02, 0.02, 0.02};
-  const double mass = sphere_mass(radius, kSteelDensity);
+  const double mass = ball_mass(radius, kSteelDensity);
   const double dt = linear_contact_time(stiffness, 0.5 * mass, 1.0) / 50;
   EngineConfig c = steel_box(half, NormalModel::linear, TangentialModel::none,
                              linear_contact(stiffness, 1.0, 0), dt);
@@ -123,7 +123,7 @@ Pile settled_pile(EngineConfig c, std::size_t count, double spacing, double r_mi
     add_particle(c, uniform(gen, r_min, r_max), x,
                  {uniform(gen, -0.1, 0.1), uniform(gen, -0.1, 0.1), uniform(gen, -0.1, 0.1)});
   Pile pile;
-  for (double r : c.radius) pile.weight += sphere_mass(r, c.density) * kGravity;
+  for (double r : c.radius) pile.weight += ball_mass(r, c.density) * kGravity;
   pile.engine = make_engine(c);
   pile.config = c;
   for (int n = 0; n < settle_steps; ++n) step(*pile.engine, c.dt);
@@ -135,7 +135,7 @@ TEST_CASE("static pile: at rest and the walls carry its weight") {
   // friction 0.5. Balls resting on the floor may roll freely (no rolling resistance), so
   // "static" means slower than the bound, not zero.
   const double radius = 2.5e-3, stiffness = 2e3;  // N/m: 0.8 % overlap under 8 layers
-  const double mass = sphere_mass(radius, kSteelDensity);
+  const double mass = ball_mass(radius, kSteelDensity);
   const double dt = linear_contact_time(stiffness, 0.5 * mass, 0.3) / 25;
   EngineConfig c = steel_box({0.013, 0.013, 0.03}, NormalModel::linear, TangentialModel::history,
                              linear_contact(stiffness, 0.3, 0.5), dt);

@@ -31,7 +31,7 @@ TEST_CASE("cylinder side wall: normal along the radius, deck restitution") {
   // must come back along the same line at e times its speed (Hertz at dt = tc/100, see
   // contact_normal_test.cpp for the discretisation error).
   const double cylinder_radius = 0.02, speed = 1.0;
-  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double mass = ball_mass(kRadius, kSteelDensity);
   for (double e : {0.3, 0.6, 0.9}) {
     CAPTURE(e);
     const ContactParams contact = hertz_contact(kSteelYoung, kSteelPoisson, e, 0);
@@ -65,7 +65,7 @@ TEST_CASE("cylinder: a ball thrown in under gravity stays inside") {
   const Vec3 v0{1.2, -0.7, 0.3};
   add_particle(c, kRadius, {0.004, 0.006, 0.01}, v0);
   auto engine = make_engine(c);
-  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double mass = ball_mass(kRadius, kSteelDensity);
   const double v_max_sq = dot(v0, v0) + 2 * gravity * (0.01 + half_height);
   const double overlap_bound = std::pow(
       15 * mass * v_max_sq / (16 * contact.hertz_modulus_pw * std::sqrt(kRadius)), 2.0 / 5.0);
@@ -91,7 +91,7 @@ TEST_CASE("cylinder: a ball thrown in under gravity stays inside") {
 
 TEST_CASE("blow-up guard flags") {
   const double stiffness = 1e5;
-  const double mass = sphere_mass(kRadius, kSteelDensity);
+  const double mass = ball_mass(kRadius, kSteelDensity);
   const double tc = linear_contact_time(stiffness, 0.5 * mass, 0.9);
   const Vec3 half{0.01, 0.01, 0.01};
   auto two_balls = [&](double dt) {

@@ -7,6 +7,9 @@
 #pragma once
 
 #include <cstdint>
+#if !defined(__CUDACC__) && defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "kernels/contact_tangential.hpp"
 
@@ -287,10 +290,27 @@ PDSIM_COLD Load wall_contacts(int i, Vec3 offset, Vec3 local, const ParticleStep
   return load;
 }
 
+#if !defined(__CUDACC__) && defined(__GNUC__)
+// Two slots' worth of doubles: one SSE2 register (GCC vector extensions).
+using Double2 = double __attribute__((vector_size(2 * sizeof(double))));
+
+// Bits 0 and 1 set when slots ja and jb overlap a particle at x with reach_sq = (r_i + r_j)^2.
+inline int pair_hits(Vec3 x, Double2 reach_sq, const ParticleArrays& in, int ja, int jb) {
+  const Double2 dx = x.x - Double2{in.x[ja], in.x[jb]};
+  const Double2 dy = x.y - Double2{in.y[ja], in.y[jb]};
+  const Double2 dz = x.z - Double2{in.z[ja], in.z[jb]};
+  const auto hit = dx * dx + dy * dy + dz * dz < reach_sq;  // lanes: -1 or 0
+#if defined(__SSE2__)
+  return _mm_movemask_pd(reinterpret_cast<__m128d>(hit));
+#else
+  return static_cast<int>((hit[0] & 1) | (hit[1] & 2));
+#endif
+}
+#endif
+
 // Bit k set when neighbour slot k of particle i overlaps it. On the host, slots are tested
-// kSlotGroup at a time with GCC vector extensions (SSE2 pairs, or one AVX register when built
-// for it); lists are padded to a multiple of kSlotGroup with the particle itself, and the
-// padding bits are masked off. CUDA threads test one slot at a time.
+// kSlotGroup at a time, in SSE2 pairs; lists are padded to a multiple of kSlotGroup with the
+// particle itself, and the padding bits are masked off. CUDA threads test one slot at a time.
 template <class V>
 PDSIM_HD std::uint64_t touching_slots(int i, Vec3 x, double radius, const ParticleStepArgs& a) {
   const int n = a.neighbour_count[i];
@@ -304,19 +324,19 @@ PDSIM_HD std::uint64_t touching_slots(int i, Vec3 x, double radius, const Partic
     if (dx * dx + dy * dy + dz * dz < reach * reach) touching |= std::uint64_t{1} << k;
   }
 #else
-  static_assert(kSlotGroup == 4, "the vector code below tests four slots");
-  using Double4 = double __attribute__((vector_size(4 * sizeof(double))));
+  static_assert(kSlotGroup == 4, "the loop below tests four slots");
+  const Double2 mono_reach_sq = Double2{} + 4 * radius * radius;
   for (int k = 0; k < n; k += kSlotGroup) {
     const int j0 = slots[k], j1 = slots[k + 1], j2 = slots[k + 2], j3 = slots[k + 3];
-    const Double4 dx = x.x - Double4{a.in.x[j0], a.in.x[j1], a.in.x[j2], a.in.x[j3]};
-    const Double4 dy = x.y - Double4{a.in.y[j0], a.in.y[j1], a.in.y[j2], a.in.y[j3]};
-    const Double4 dz = x.z - Double4{a.in.z[j0], a.in.z[j1], a.in.z[j2], a.in.z[j3]};
-    Double4 reach = Double4{} + 2 * radius;
-    if constexpr (V::kPolydisperse)
-      reach = radius + Double4{a.radius[j0], a.radius[j1], a.radius[j2], a.radius[j3]};
-    const auto hit = dx * dx + dy * dy + dz * dz < reach * reach;  // lanes: -1 or 0
-    touching |=
-        static_cast<std::uint64_t>((hit[0] & 1) | (hit[1] & 2) | (hit[2] & 4) | (hit[3] & 8)) << k;
+    Double2 low = mono_reach_sq, high = mono_reach_sq;
+    if constexpr (V::kPolydisperse) {
+      low = radius + Double2{a.radius[j0], a.radius[j1]};
+      high = radius + Double2{a.radius[j2], a.radius[j3]};
+      low *= low;
+      high *= high;
+    }
+    const int bits = pair_hits(x, low, a.in, j0, j1) | pair_hits(x, high, a.in, j2, j3) << 2;
+    touching |= static_cast<std::uint64_t>(bits) << k;
   }
   if (n < 64) touching &= (std::uint64_t{1} << n) - 1;
 #endif

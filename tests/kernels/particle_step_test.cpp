@@ -1,5 +1,5 @@
-// The per-particle step (kernels/particle_step.hpp): container walls (box and cylinder) and the
-// blow-up guard flags.
+// The per-particle step (kernels/particle_step.hpp): container walls (box and cylinder), the
+// blow-up guard flags and the vectorised neighbour-slot test.
 #include "kernels/particle_step.hpp"
 
 #include <doctest/doctest.h>
@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
+#include "kernels/neighbours.hpp"
 #include "tests/kernels/dem_fixtures.hpp"
 
 namespace pdsim {
@@ -129,6 +131,61 @@ TEST_CASE("blow-up guard flags") {
     c.particles[0].velocity.y = std::numeric_limits<double>::quiet_NaN();
     CHECK((flags_within(c, 1) & kNonFinite) != 0);
   }
+}
+
+}  // namespace
+}  // namespace pdsim
+
+namespace pdsim {
+namespace {
+
+// The vectorised slot test against distances computed directly, on random clouds with padded
+// lists of every length 0..max (partial groups included), for equal and unequal radii.
+template <class V>
+void check_touching_slots(bool polydisperse) {
+  constexpr int kCount = 40, kMax = 16;
+  std::vector<double> x(kCount), y(kCount), z(kCount), radius(kCount);
+  std::uint64_t seed = 12345;
+  auto uniform = [&seed] {  // a fixed linear congruential sequence in [0, 1)
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(seed >> 11) * 0x1.0p-53;
+  };
+  for (int i = 0; i < kCount; ++i) {
+    x[i] = 0.02 * uniform(), y[i] = 0.02 * uniform(), z[i] = 0.02 * uniform();
+    radius[i] = polydisperse ? 0.002 + 0.003 * uniform() : 0.004;
+  }
+  std::vector<std::int32_t> neighbours(kCount * kMax), count(kCount);
+  for (int i = 0; i < kCount; ++i) {
+    count[i] = i % (kMax + 1);  // every list length, 0 to kMax
+    for (int k = 0; k < count[i]; ++k) neighbours[i * kMax + k] = (i + 1 + 3 * k) % kCount;
+    pad_slots(i, count[i], kMax, neighbours.data());
+  }
+  ParticleStepArgs a{};
+  a.in.x = x.data(), a.in.y = y.data(), a.in.z = z.data();
+  a.radius = radius.data();
+  a.mono_radius = 0.004;
+  a.neighbours = neighbours.data();
+  a.neighbour_count = count.data();
+  a.max_neighbours = kMax;
+  int contacts = 0;
+  for (int i = 0; i < kCount; ++i) {
+    std::uint64_t expected = 0;
+    for (int k = 0; k < count[i]; ++k) {
+      const int j = neighbours[i * kMax + k];
+      const double d = std::hypot(x[i] - x[j], y[i] - y[j], z[i] - z[j]);
+      if (d < radius[i] + radius[j]) expected |= std::uint64_t{1} << k;
+    }
+    contacts += __builtin_popcountll(expected);
+    CHECK(touching_slots<V>(i, {x[i], y[i], z[i]}, radius[i], a) == expected);
+  }
+  CHECK(contacts > 20);  // the clouds are dense enough for the test to mean something
+}
+
+TEST_CASE("neighbour slot test agrees with direct distances") {
+  check_touching_slots<Variant<HertzNormal, NoTangential, false, false, false, WallShape::box>>(
+      false);
+  check_touching_slots<Variant<HertzNormal, NoTangential, false, false, true, WallShape::box>>(
+      true);
 }
 
 }  // namespace

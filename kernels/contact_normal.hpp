@@ -38,10 +38,8 @@ struct HertzNormal {
     const double shear = wall ? p.shear_modulus_pw : p.shear_modulus_pp;
     const double sn = 2.0 * modulus * contact_radius;
     const double kt = 8.0 * shear * contact_radius;
-    // sqrt(Sn m*) and sqrt(St m*) share sqrt(a m*): one root for both dampers.
-    const double root = sqrt(contact_radius * mass_eff);
-    return {(2.0 / 3.0) * sn * overlap, p.damping_factor * sqrt(2.0 * modulus) * root, kt,
-            p.damping_factor * sqrt(8.0 * shear) * root};
+    return {(2.0 / 3.0) * sn * overlap, p.damping_factor * sqrt(sn * mass_eff), kt,
+            p.damping_factor * sqrt(kt * mass_eff)};
   }
 };
 

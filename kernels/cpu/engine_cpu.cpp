@@ -246,16 +246,14 @@ class CpuEngine final : public DemEngine {
     StateBuffer& out = state_[current_ ^ 1];
     HistoryBuffer& hin = history_[current_];
     HistoryBuffer& hout = history_[current_ ^ 1];
-    ParticleStepArgs a{};
-    a.count = count_;
+    ParticleStepArgs a = scene_args_;
     a.dt = dt;
+    a.container = container;
     a.in = in.view();
     a.out = out.view();
     a.radius = radius_.data();
     a.inv_mass = inv_mass_.data();
     a.inv_inertia = inv_inertia_.data();
-    a.mono_radius = radius_[0];
-    a.mono = sphere_mass(radius_[0], config_.density);
     a.neighbours = neighbours_.data();
     a.neighbour_count = neighbour_count_.data();
     a.max_neighbours = max_neighbours_;
@@ -263,10 +261,6 @@ class CpuEngine final : public DemEngine {
     a.x_build = x_build_.data();
     a.y_build = y_build_.data();
     a.z_build = z_build_.data();
-    a.contact = config_.contact;
-    a.geometry = config_.geometry;
-    a.container = container;
-    a.gravity = config_.gravity.value_or(Vec3{});
     return a;
   }
 
@@ -346,6 +340,7 @@ class CpuEngine final : public DemEngine {
   }
 
   EngineConfig config_;
+  ParticleStepArgs scene_args_ = scene_step_args(config_);
   int count_ = 0, threads_ = 1, max_neighbours_ = 1, current_ = 0;
   double r_min_ = 0, r_max_ = 0, skin_ = 0;
   StateBuffer state_[2];

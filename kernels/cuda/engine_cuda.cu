@@ -490,9 +490,6 @@ class CudaEngine final : public DemEngine {
       inv_mass[i] = m.inv_mass;
       inv_inertia[i] = m.inv_inertia;
     }
-    // A monodisperse scene passes its constants as scalars (all particles share them).
-    mono_radius_ = radius_host_[0];
-    mono_ = sphere_mass(mono_radius_, config_.density);
     radius_.upload(radius_host_, stream_.get(), "radius");
     inv_mass_.upload(inv_mass, stream_.get(), "inv_mass");
     inv_inertia_.upload(inv_inertia, stream_.get(), "inv_inertia");
@@ -530,16 +527,14 @@ class CudaEngine final : public DemEngine {
   ParticleStepArgs args(const ContainerKinematics& container, double dt) const {
     const DeviceHistory& hin = history_[current_];
     const DeviceHistory& hout = history_[current_ ^ 1];
-    ParticleStepArgs a{};
-    a.count = count_;
+    ParticleStepArgs a = scene_args_;
     a.dt = dt;
+    a.container = container;
     a.in = state_[current_].view();
     a.out = state_[current_ ^ 1].view();
     a.radius = radius_.data();
     a.inv_mass = inv_mass_.data();
     a.inv_inertia = inv_inertia_.data();
-    a.mono_radius = mono_radius_;
-    a.mono = mono_;
     a.neighbours = neighbours_.data();
     a.neighbour_count = neighbour_count_.data();
     a.max_neighbours = max_neighbours_;
@@ -547,10 +542,6 @@ class CudaEngine final : public DemEngine {
     a.x_build = x_build_.data();
     a.y_build = y_build_.data();
     a.z_build = z_build_.data();
-    a.contact = config_.contact;
-    a.geometry = config_.geometry;
-    a.container = container;
-    a.gravity = config_.gravity.value_or(Vec3{});
     return a;
   }
 
@@ -630,7 +621,7 @@ class CudaEngine final : public DemEngine {
     b.y = t.y.data();
     b.z = t.z.data();
     b.radius = step_.polydisperse ? radius_.data() : nullptr;
-    b.mono_radius = mono_radius_;
+    b.mono_radius = scene_args_.mono_radius;
     b.skin = skin_;
     b.cell_start = cell_start_.data();
     b.cell_end = cell_end_.data();
@@ -660,12 +651,11 @@ class CudaEngine final : public DemEngine {
   }
 
   EngineConfig config_;
+  ParticleStepArgs scene_args_ = scene_step_args(config_);
   StepVariant step_;
   Stream stream_;  // declared before the arrays, so destroyed after them
   int count_ = 0, max_neighbours_ = 1, current_ = 0;
   double r_min_ = 0, r_max_ = 0, skin_ = 0;
-  double mono_radius_ = 0;
-  SphereMass mono_{};
   std::string device_name_;
   std::vector<double> radius_host_;
   DeviceState state_[2];

@@ -60,8 +60,7 @@ struct ParticleArrays {
   double *wx, *wy, *wz;
 };
 
-constexpr int kWallSlots = 6;
-constexpr int kSlotGroup = 4;  // neighbour lists are padded to multiples of this (slot tests)  //
-                               // box: -x,+x,-y,+y,-z,+z; cylinder: 0 side, 4 -z, 5 +z
+constexpr int kWallSlots = 6;  // box: -x,+x,-y,+y,-z,+z; cylinder: 0 side, 4 -z, 5 +z
+constexpr int kSlotGroup = 4;  // neighbour lists are padded to multiples of this (slot tests)
 
 }  // namespace pdsim

@@ -1,7 +1,8 @@
-// Uniform grid and Verlet neighbour lists with a skin, shared by both backends. Particles are
-// reordered by cell at each rebuild (the backend sorts: counting sort on the CPU, radix sort on
-// the GPU); the per-particle gather below is written once. Tangential history lives in the slot
-// of the neighbour list entry and is carried over to the new list by partner identity.
+// Uniform grid and Verlet neighbour lists with a skin, shared by both backends. Each pair is
+// listed once, by its lower index (forward lists); reverse lists point back at those slots.
+// Particles are reordered by cell at each rebuild (the backend sorts: counting sort on the CPU,
+// radix sort on the GPU); the per-particle builds below are written once. Tangential history
+// lives in the pair's forward slot and is carried over to the new lists by partner identity.
 #pragma once
 
 #include <cstdint>
@@ -70,6 +71,8 @@ struct NeighbourBuildArgs {
   std::int32_t* neighbours;       // out: count x max_neighbours
   std::int32_t* neighbour_count;  // out
   std::int32_t* partner_id;       // out: identity of each listed partner
+  std::int32_t* reverse;          // out: count x max_neighbours forward slots listing each particle
+  std::int32_t* reverse_count;    // out
   const std::int32_t* id;         // identity of each particle in the new order
   // History carried over (nullptr when the scene has no tangential history).
   const std::int32_t* old_index;  // new index -> index before the reorder
@@ -88,64 +91,100 @@ PDSIM_HD void pad_slots(int i, int count, int max_neighbours, std::int32_t* neig
     neighbours[i * max_neighbours + k] = i;
 }
 
-// Lists every particle within reach + skin of particle i (scanning the 27 cells in a fixed
-// order, so the list does not depend on threads); returns false on list overflow.
+// Calls f(j) for every particle j in the 27 cells around position p, in a fixed order (so the
+// lists do not depend on threads).
+template <class F>
+PDSIM_HD void for_each_nearby(const Grid& g, Vec3 p, const std::int32_t* cell_start,
+                              const std::int32_t* cell_end, F&& f) {
+  const double inv = 1.0 / g.cell_size;
+  const int cx = clamp_cell((p.x - g.origin.x) * inv, g.nx);
+  const int cy = clamp_cell((p.y - g.origin.y) * inv, g.ny);
+  const int cz = clamp_cell((p.z - g.origin.z) * inv, g.nz);
+  for (int z = cz > 0 ? cz - 1 : 0; z <= cz + 1 && z < g.nz; ++z)
+    for (int y = cy > 0 ? cy - 1 : 0; y <= cy + 1 && y < g.ny; ++y)
+      for (int x = cx > 0 ? cx - 1 : 0; x <= cx + 1 && x < g.nx; ++x) {
+        const int cell = (z * g.ny + y) * g.nx + x;
+        for (int j = cell_start[cell]; j < cell_end[cell]; ++j) f(j);
+      }
+}
+
+// Slot of `partner` among the first `count` entries of a list, or -1.
+PDSIM_HD int find_slot(const std::int32_t* list, int count, std::int32_t partner) {
+  for (int k = 0; k < count; ++k)
+    if (list[k] == partner) return k;
+  return -1;
+}
+
+// Forward list of particle i: every particle of higher index within reach + skin, so that each
+// pair is listed once. Returns false on list overflow.
 PDSIM_HD bool build_neighbours_of(int i, const NeighbourBuildArgs& a) {
   const Vec3 p{a.x[i], a.y[i], a.z[i]};
   const double ri = a.radius ? a.radius[i] : a.mono_radius;
-  const double inv = 1.0 / a.grid.cell_size;
-  const int cx = clamp_cell((p.x - a.grid.origin.x) * inv, a.grid.nx);
-  const int cy = clamp_cell((p.y - a.grid.origin.y) * inv, a.grid.ny);
-  const int cz = clamp_cell((p.z - a.grid.origin.z) * inv, a.grid.nz);
   const int base = i * a.max_neighbours;
   int n = 0;
   bool fits = true;
-  for (int dz = -1; dz <= 1; ++dz) {
-    const int z = cz + dz;
-    if (z < 0 || z >= a.grid.nz) continue;
-    for (int dy = -1; dy <= 1; ++dy) {
-      const int y = cy + dy;
-      if (y < 0 || y >= a.grid.ny) continue;
-      for (int dx = -1; dx <= 1; ++dx) {
-        const int xcell = cx + dx;
-        if (xcell < 0 || xcell >= a.grid.nx) continue;
-        const int cell = (z * a.grid.ny + y) * a.grid.nx + xcell;
-        for (int j = a.cell_start[cell]; j < a.cell_end[cell]; ++j) {
-          if (j == i) continue;
-          const Vec3 d{p.x - a.x[j], p.y - a.y[j], p.z - a.z[j]};
-          const double reach = ri + (a.radius ? a.radius[j] : a.mono_radius) + a.skin;
-          if (dot(d, d) >= reach * reach) continue;
-          if (n == a.max_neighbours) {
-            fits = false;
-            continue;
-          }
-          a.neighbours[base + n] = j;
-          a.partner_id[base + n] = a.id[j];
-          ++n;
-        }
-      }
+  for_each_nearby(a.grid, p, a.cell_start, a.cell_end, [&](int j) {
+    if (j <= i) return;
+    const Vec3 d{p.x - a.x[j], p.y - a.y[j], p.z - a.z[j]};
+    const double reach = ri + (a.radius ? a.radius[j] : a.mono_radius) + a.skin;
+    if (dot(d, d) >= reach * reach) return;
+    if (n == a.max_neighbours) {
+      fits = false;
+      return;
     }
-  }
+    a.neighbours[base + n] = j;
+    a.partner_id[base + n] = a.id[j];
+    ++n;
+  });
   a.neighbour_count[i] = n;
   pad_slots(i, n, a.max_neighbours, a.neighbours);
   if (a.new_mask) {
-    // Carry the tangential history of contacts that survive the rebuild.
-    const int old_i = a.old_index[i];
-    const int old_base = old_i * a.max_neighbours;
-    const std::uint64_t old_mask = a.old_mask[old_i];
+    // Carry the tangential history of contacts that survive the rebuild. A pair's history
+    // lives with its owner (the lower index); when the owners swap, it changes sign.
     std::uint64_t mask = 0;
     for (int k = 0; k < n; ++k) {
-      const std::int32_t partner = a.partner_id[base + k];
-      for (int m = 0; m < a.old_neighbour_count[old_i]; ++m) {
-        if (!(old_mask >> m & 1u) || a.old_partner_id[old_base + m] != partner) continue;
-        for (int c = 0; c < 3; ++c)
-          a.new_history[3 * (base + k) + c] = a.old_history[3 * (old_base + m) + c];
-        mask |= std::uint64_t{1} << k;
-        break;
+      const int j = a.neighbours[base + k];
+      int old_owner = a.old_index[i];
+      std::int32_t old_partner = a.partner_id[base + k];
+      double sign = 1;
+      int m = find_slot(a.old_partner_id + old_owner * a.max_neighbours,
+                        a.old_neighbour_count[old_owner], old_partner);
+      if (m < 0 || !(a.old_mask[old_owner] >> m & 1u)) {
+        old_owner = a.old_index[j];
+        old_partner = a.id[i];
+        sign = -1;
+        m = find_slot(a.old_partner_id + old_owner * a.max_neighbours,
+                      a.old_neighbour_count[old_owner], old_partner);
+        if (m < 0 || !(a.old_mask[old_owner] >> m & 1u)) continue;
       }
+      const int from = old_owner * a.max_neighbours + m;
+      for (int c = 0; c < 3; ++c)
+        a.new_history[3 * (base + k) + c] = sign * a.old_history[3 * from + c];
+      mask |= std::uint64_t{1} << k;
     }
     a.new_mask[i] = mask;
   }
+  return fits;
+}
+
+// Reverse list of particle j, after every forward list is built: the forward slots
+// (owner * max_neighbours + k) of the particles that list j, in a fixed order. Returns false
+// on list overflow.
+PDSIM_HD bool build_reverse_of(int j, const NeighbourBuildArgs& a) {
+  const int base = j * a.max_neighbours;
+  int n = 0;
+  bool fits = true;
+  for_each_nearby(a.grid, {a.x[j], a.y[j], a.z[j]}, a.cell_start, a.cell_end, [&](int i) {
+    if (i >= j) return;
+    const int k = find_slot(a.neighbours + i * a.max_neighbours, a.neighbour_count[i], j);
+    if (k < 0) return;
+    if (n == a.max_neighbours) {
+      fits = false;
+      return;
+    }
+    a.reverse[base + n++] = i * a.max_neighbours + k;
+  });
+  a.reverse_count[j] = n;
   return fits;
 }
 

@@ -1,9 +1,12 @@
-// One DEM step of one particle, written once for the CPU and CUDA backends: gather the
-// contact forces from the neighbour list and the container walls, then integrate
-// (semi-implicit Euler, fused into the force pass; state is double buffered so every particle
-// reads t_n and writes t_{n+1}, and a step can be re-run from the same input for tight coupling).
-// Each particle computes its own half of every pair, so no atomics are needed and the result
-// does not depend on the thread count; the pair forces are antisymmetric to the last bit.
+// One DEM step, written once for the CPU and CUDA backends, in two passes over the particles:
+//  1. pair pass: each particle tests its forward neighbour list (partners of higher index, so
+//     every pair is listed once) and computes the touching pairs' forces, once per pair, into the
+//     pair's slot;
+//  2. particle pass: each particle gathers its pairs' forces in a fixed order (its own slots,
+//     then its reverse list) plus the container walls, and integrates (semi-implicit Euler).
+// State is double buffered: every particle reads t_n and writes t_{n+1}, so a step can be
+// re-run from the same input for tight coupling. No pass writes another particle's sums, so no
+// atomics add forces, and the result does not depend on the thread count.
 #pragma once
 
 #include <cstdint>
@@ -60,6 +63,9 @@ inline SphereMass sphere_mass(double radius, double density) {
   return {mass, inertia, 1.0 / mass, 1.0 / inertia};
 }
 
+// Per forward slot in contact: force on the owner, torque on the owner, torque on the partner.
+constexpr int kPairDoubles = 9;
+
 struct ParticleStepArgs {
   int count;
   double dt;
@@ -69,10 +75,19 @@ struct ParticleStepArgs {
   const double* inv_inertia;  // polydisperse only
   double mono_radius;         // monodisperse: every particle's radius and mass
   SphereMass mono;
-  const std::int32_t* neighbours;  // count x max_neighbours partner indices
+  // Forward lists: partners of higher index within reach + skin, so that each pair is listed
+  // once (count x max_neighbours, padded, see neighbours.hpp).
+  const std::int32_t* neighbours;
   const std::int32_t* neighbour_count;
+  // Reverse lists: the forward slots (owner * max_neighbours + k) that list particle i.
+  const std::int32_t* reverse;
+  const std::int32_t* reverse_count;
   int max_neighbours;
   HistoryArrays history;
+  // Written by the pair pass, read by the particle pass.
+  std::uint64_t* touching;  // forward slots in contact (history.neighbour_mask_out if kept)
+  std::uint32_t* incoming;  // set when a lower particle touches i; the particle pass clears it
+  double* pair_load;        // count x max_neighbours x kPairDoubles
   const double *x_build, *y_build, *z_build;  // positions at the last neighbour-list build
   ContactParams contact;
   ContainerGeometry geometry;
@@ -107,31 +122,34 @@ PDSIM_HD void store3(double* a, int k, Vec3 v) {
   a[3 * k + 2] = v.z;
 }
 
-// Force and torque of one contact on the particle. `normal` points from the other body to this
-// particle; `vrel` is the velocity of this particle's contact point relative to the other's.
+// Force and torque of one contact on the particle, and the torque on its partner (of radius
+// `partner_radius`; the partner's force is minus `force`). `normal` points from the other body
+// to this particle; `vrel` is the velocity of this particle's contact point relative to the
+// other's.
 struct ContactOutcome {
-  Vec3 force, torque;
+  Vec3 force, torque, partner_torque;
 };
 
 template <class V>
 PDSIM_HD ContactOutcome contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 omega_rel,
-                                double radius, double radius_eff, double mass_eff, bool wall,
-                                Vec3* history, double dt, const ContactParams& p, double share,
-                                double& dissipated_normal, double& dissipated_tangential) {
+                                double radius, double partner_radius, double radius_eff,
+                                double mass_eff, bool wall, Vec3* history, double dt,
+                                const ContactParams& p, double& dissipated_normal,
+                                double& dissipated_tangential) {
   const NormalResponse r = V::Normal::respond(overlap, radius_eff, mass_eff, wall, p);
   const double vn = dot(vrel, normal);
   const Vec3 vt = vrel - vn * normal;
   const double fn = r.elastic - r.damping * vn;
-  dissipated_normal += share * r.damping * vn * vn * dt;
-  double tangential_loss = 0;
-  const Vec3 ft = V::Tangential::force(history, normal, vt, r, fn, dt, p, tangential_loss);
-  dissipated_tangential += share * tangential_loss;
-  ContactOutcome out{fn * normal + ft, cross(-radius * normal, ft)};
+  dissipated_normal += r.damping * vn * vn * dt;
+  const Vec3 ft = V::Tangential::force(history, normal, vt, r, fn, dt, p, dissipated_tangential);
+  ContactOutcome out{fn * normal + ft, cross(-radius * normal, ft),
+                     cross(-partner_radius * normal, ft)};
   if constexpr (V::kRolling) {
     // Constant directional rolling resistance: |T| = mu_r R* |Fn| against the relative spin.
     const double spin = norm(omega_rel);
     const double scale = p.rolling_friction * radius_eff * fabs(fn) / max_of(spin, 1e-6);
     out.torque -= scale * omega_rel;
+    out.partner_torque += scale * omega_rel;
   }
   return out;
 }
@@ -170,13 +188,24 @@ struct Load {
   Vec3 force, torque;
 };
 
-// Particle-particle contacts of particle i, over the neighbour slots set in `touching`. The
-// heavy contact paths are out of line on the CPU (PDSIM_COLD) and reread the particle's state
-// and body (L1 hits; what they do not use compiles away): passing the body in made the hot loop
-// store it for every particle (+5 instructions per particle-step, callgrind).
+// Sets a flag that several threads may set at once (to the same value, so the result is
+// deterministic).
+PDSIM_HD void raise_flag(std::uint32_t* flag) {
+#if defined(__CUDA_ARCH__)
+  atomicOr(flag, 1u);
+#else
+  __atomic_store_n(flag, 1u, __ATOMIC_RELAXED);
+#endif
+}
+
+// Pair pass, contacts of particle i over the forward slots set in `touching`: computes each
+// pair's loads into its slot and marks the partner. The heavy contact paths are out of line on
+// the CPU (PDSIM_COLD) and reread the particle's state and body (L1 hits; what they do not use
+// compiles away): passing the body in made the hot loop store it for every particle (+5
+// instructions per particle-step, callgrind).
 template <class V>
-PDSIM_COLD Load neighbour_contacts(int i, std::uint64_t touching, const ParticleStepArgs& a,
-                                   ParticleContribution& sum) {
+PDSIM_COLD void pair_contacts(int i, std::uint64_t touching, const ParticleStepArgs& a,
+                              ParticleContribution& sum) {
   const Body b = body<V>(i, a);
   const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
   const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
@@ -184,7 +213,6 @@ PDSIM_COLD Load neighbour_contacts(int i, std::uint64_t touching, const Particle
   const int base = i * a.max_neighbours;
   std::uint64_t mask_in = 0;
   if constexpr (V::Tangential::kHistory) mask_in = a.history.neighbour_mask_in[i];
-  Load load;
   for (std::uint64_t m = touching; m; m &= m - 1) {
     const int k = lowest_bit(m);
     const int j = a.neighbours[base + k];
@@ -207,24 +235,63 @@ PDSIM_COLD Load neighbour_contacts(int i, std::uint64_t touching, const Particle
     if constexpr (V::Tangential::kHistory) {
       if (mask_in >> k & 1u) xi = load3(a.history.neighbour_in, base + k);
     }
-    const auto out = contact<V>(reach - dist, normal, vrel, w - wj, b.radius,
+    const auto out = contact<V>(reach - dist, normal, vrel, w - wj, b.radius, radius_j,
                                 b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
-                                0.5, sum.dissipated_normal, sum.dissipated_tangential);
+                                sum.dissipated_normal, sum.dissipated_tangential);
     if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, base + k, xi);
-    load.force += out.force;
-    load.torque += out.torque;
+    double* slot = a.pair_load + kPairDoubles * (base + k);
+    store3(slot, 0, out.force);
+    store3(slot, 1, out.torque);
+    store3(slot, 2, out.partner_torque);
+    raise_flag(a.incoming + j);
+  }
+}
+
+// Particle pass: the loads of particle i's pairs, own slots first, then the slots of the
+// particles that list it, each in list order (so the sum does not depend on threads).
+template <class V>
+PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
+  Load load;
+  const int base = i * a.max_neighbours;
+  for (std::uint64_t m = a.touching[i]; m; m &= m - 1) {
+    const double* slot = a.pair_load + kPairDoubles * (base + lowest_bit(m));
+    load.force += load3(slot, 0);
+    load.torque += load3(slot, 1);
+  }
+  if (a.incoming[i]) {
+    a.incoming[i] = 0;
+    for (int r = 0; r < a.reverse_count[i]; ++r) {
+      const int s = a.reverse[base + r];
+      const int owner = s / a.max_neighbours;
+      if (a.touching[owner] >> (s - owner * a.max_neighbours) & 1u) {
+        const double* slot = a.pair_load + kPairDoubles * s;
+        load.force -= load3(slot, 0);
+        load.torque += load3(slot, 2);
+      }
+    }
   }
   return load;
 }
 
-// Contacts of particle i with the container walls, for a particle that passed the bounding
-// test. `offset` is its centre relative to the container centre, `local` the same in the
-// container frame. Adds the reaction on the container to `sum`.
+// The centre of particle i at x relative to the container centre, in the world frame and in
+// the container frame.
 template <class V>
-PDSIM_COLD Load wall_contacts(int i, Vec3 offset, Vec3 local, const ParticleStepArgs& a,
-                              ParticleContribution& sum) {
+PDSIM_HD void container_offset(Vec3 x, const ParticleStepArgs& a, Vec3& offset, Vec3& local) {
+  offset = x - a.container.position;
+  local = offset;
+  if constexpr (V::kRotating)
+    local = {dot(offset, a.container.axis_x), dot(offset, a.container.axis_y),
+             dot(offset, a.container.axis_z)};
+}
+
+// Contacts of particle i with the container walls, for a particle that passed the bounding
+// test. Adds the reaction on the container to `sum`.
+template <class V>
+PDSIM_COLD Load wall_contacts(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
   const Body b = body<V>(i, a);
   const double radius = b.radius;
+  Vec3 offset, local;
+  container_offset<V>({a.in.x[i], a.in.y[i], a.in.z[i]}, a, offset, local);
   const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
   const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
   const ContainerKinematics& box = a.container;
@@ -246,8 +313,8 @@ PDSIM_COLD Load wall_contacts(int i, Vec3 offset, Vec3 local, const ParticleStep
     }
     const Vec3 vrel = v_wall_rel - cross(radius * w, normal);
     const auto out =
-        contact<V>(radius - gap, normal, vrel, w, radius, radius, b.mass, true, &xi, a.dt,
-                   a.contact, 1.0, sum.dissipated_normal, sum.dissipated_tangential);
+        contact<V>(radius - gap, normal, vrel, w, radius, 0.0, radius, b.mass, true, &xi, a.dt,
+                   a.contact, sum.dissipated_normal, sum.dissipated_tangential);
     if constexpr (V::Tangential::kHistory) {
       store3(a.history.wall_out, i * kWallSlots + slot, xi);
       mask_out = static_cast<std::uint8_t>(mask_out | (1u << slot));
@@ -344,29 +411,41 @@ PDSIM_HD std::uint64_t touching_slots(int i, Vec3 x, double radius, const Partic
   return touching;
 }
 
-// One particle's step, adding its contribution to `sum`. The common case (a few list entries,
-// no contact, away from the walls) stays in this short path.
+// The two passes take the step arguments twice: `a` for the hot path and `shared`, the same
+// values, for the out-of-line contact paths. A copy of `a` private to the loop then never
+// escapes, so the compiler keeps its fields in registers instead of reloading them after
+// every store (on CUDA both are the kernel's argument).
+
+// Pair pass of particle i: which forward slots touch (most do not, so this test is kept
+// minimal), and the loads of those pairs. Dissipation goes to `sum`.
 template <class V>
-PDSIM_HOT void step_particle(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
+PDSIM_HOT void pair_pass(int i, const ParticleStepArgs& a, const ParticleStepArgs& shared,
+                         ParticleContribution& sum) {
+  const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
+  const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
+  const std::uint64_t touching = touching_slots<V>(i, x, radius, a);
+  a.touching[i] = touching;
+  if (touching) pair_contacts<V>(i, touching, shared, sum);
+}
+
+// Particle pass of particle i: its pair loads and wall contacts, then the integration. The
+// common case (no contact, away from the walls) stays in this short path. Wall contacts add
+// to `cold`, the integration to `sum` (two sums, so that the hot one stays in registers too).
+template <class V>
+PDSIM_HOT void particle_pass(int i, const ParticleStepArgs& a, const ParticleStepArgs& shared,
+                             ParticleContribution& sum, ParticleContribution& cold) {
   const Body b = body<V>(i, a);
   const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
   Vec3 force, torque;
-
-  // Which neighbour-list entries touch: most do not, so this test is kept minimal.
-  const std::uint64_t touching = touching_slots<V>(i, x, b.radius, a);
-  if (touching) {
-    const Load l = neighbour_contacts<V>(i, touching, a, sum);
+  if (a.touching[i] | a.incoming[i]) {
+    const Load l = pair_loads<V>(i, shared);
     force = l.force;
     torque = l.torque;
   }
-  if constexpr (V::Tangential::kHistory) a.history.neighbour_mask_out[i] = touching;
 
   // Bounding test against the container (a centre outside it passes too, for the guard).
-  const Vec3 offset = x - a.container.position;
-  Vec3 local = offset;
-  if constexpr (V::kRotating)
-    local = {dot(offset, a.container.axis_x), dot(offset, a.container.axis_y),
-             dot(offset, a.container.axis_z)};
+  Vec3 offset, local;
+  container_offset<V>(x, a, offset, local);
   const Vec3 inner = a.geometry.half_size - Vec3{b.radius, b.radius, b.radius};
   bool near_wall = fabs(local.z) > inner.z;
   if constexpr (V::kShape == WallShape::box) {
@@ -376,14 +455,14 @@ PDSIM_HOT void step_particle(int i, const ParticleStepArgs& a, ParticleContribut
     near_wall |= local.x * local.x + local.y * local.y > inside * inside;
   }
   if (near_wall) {
-    const Load l = wall_contacts<V>(i, offset, local, a, sum);
+    const Load l = wall_contacts<V>(i, shared, cold);
     force += l.force;
     torque += l.torque;
   } else if constexpr (V::Tangential::kHistory) {
     a.history.wall_mask_out[i] = 0;
   }
 
-  // Semi-implicit Euler (symplectic), fused into the force pass.
+  // Semi-implicit Euler (symplectic), fused into the gather.
   const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
   const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
   Vec3 accel = b.inv_mass * force;

@@ -67,22 +67,40 @@ class CpuEngine final : public DemEngine {
 
   const StepTotals& compute(const ContainerKinematics& container, double dt) override {
     if (needs_rebuild_) rebuild(container);
-    ParticleStepArgs a = args(container, dt);
+    const ParticleStepArgs a = args(container, dt);
     const int blocks = (count_ + kBlock - 1) / kBlock;
     block_totals_.assign(static_cast<std::size_t>(blocks), StepTotals{});
-    auto run_block = [&](int b) {
-      const ParticleStepArgs local = a;  // private: its pointers can stay in registers
-      StepTotals sum;
-      const int end = std::min(count_, (b + 1) * kBlock);
-      for (int i = b * kBlock; i < end; ++i) step_particle<V>(i, local, sum);
-      block_totals_[static_cast<std::size_t>(b)] = sum;
+    auto range = [&](int b) {
+      return std::make_pair(b * kBlock, std::min(count_, (b + 1) * kBlock));
+    };
+    // Each block keeps a private copy of the arguments, so that their pointers can stay in
+    // registers, and the pair pass's sums in its block's total.
+    auto pair_block = [&](int b) {
+      const ParticleStepArgs local = a;
+      StepTotals& sum = block_totals_[static_cast<std::size_t>(b)];
+      const auto [begin, end] = range(b);
+      for (int i = begin; i < end; ++i) pair_pass<V>(i, local, a, sum);
+    };
+    auto particle_block = [&](int b) {
+      const ParticleStepArgs local = a;
+      StepTotals sum, cold;
+      const auto [begin, end] = range(b);
+      for (int i = begin; i < end; ++i) particle_pass<V>(i, local, a, sum, cold);
+      accumulate(sum, cold);
+      accumulate(block_totals_[static_cast<std::size_t>(b)], sum);
     };
     if (blocks == 1 || threads_ == 1) {
       // Small scenes: a parallel region would cost more than it saves.
-      for (int b = 0; b < blocks; ++b) run_block(b);
+      for (int b = 0; b < blocks; ++b) pair_block(b);
+      for (int b = 0; b < blocks; ++b) particle_block(b);
     } else {
-#pragma omp parallel for schedule(static) num_threads(threads_)
-      for (int b = 0; b < blocks; ++b) run_block(b);
+#pragma omp parallel num_threads(threads_)
+      {
+#pragma omp for schedule(static)
+        for (int b = 0; b < blocks; ++b) pair_block(b);
+#pragma omp for schedule(static)
+        for (int b = 0; b < blocks; ++b) particle_block(b);
+      }
     }
     totals_ = StepTotals{};
     for (const auto& t : block_totals_) accumulate(totals_, t);
@@ -137,6 +155,11 @@ class CpuEngine final : public DemEngine {
     neighbours_.assign(slots, -1);
     partner_id_.assign(slots, -1);
     neighbour_count_.assign(n, 0);
+    reverse_.assign(slots, -1);
+    reverse_count_.assign(n, 0);
+    touching_.assign(V::Tangential::kHistory ? 0 : n, 0);
+    incoming_.assign(n, 0);
+    pair_load_.assign(kPairDoubles * slots, 0.0);
     needs_rebuild_ = true;
   }
 
@@ -160,6 +183,8 @@ class CpuEngine final : public DemEngine {
     out["neighbours"].assign(neighbours_.begin(), neighbours_.end());
     out["partner_id"].assign(partner_id_.begin(), partner_id_.end());
     out["neighbour_count"].assign(neighbour_count_.begin(), neighbour_count_.end());
+    out["reverse"].assign(reverse_.begin(), reverse_.end());
+    out["reverse_count"].assign(reverse_count_.begin(), reverse_count_.end());
     out["x_build"] = x_build_;
     out["y_build"] = y_build_;
     out["z_build"] = z_build_;
@@ -182,6 +207,10 @@ class CpuEngine final : public DemEngine {
       return it->second;
     };
     const std::vector<double>& grid = get("grid");
+    // Older checkpoints hold full neighbour lists (each pair twice), unpadded.
+    if (in.count("reverse") == 0 || static_cast<int>(grid.at(8)) % kSlotGroup != 0)
+      throw SimulationError(
+          "checkpoint written by an older pdsim (full neighbour lists); rerun without --resume");
     max_neighbours_ = static_cast<int>(grid.at(8));
     set_particles(config_.particles);  // sizes every array for max_neighbours_
     StateBuffer& s = state_[current_];
@@ -203,12 +232,8 @@ class CpuEngine final : public DemEngine {
     to_int(get("neighbours"), neighbours_);
     to_int(get("partner_id"), partner_id_);
     to_int(get("neighbour_count"), neighbour_count_);
-    if (max_neighbours_ % kSlotGroup != 0)
-      throw SimulationError("checkpoint written by an older pdsim (neighbour lists of " +
-                            std::to_string(max_neighbours_) + " slots); rerun without --resume");
-    for (int i = 0; i < count_; ++i)
-      pad_slots(i, neighbour_count_[static_cast<std::size_t>(i)], max_neighbours_,
-                neighbours_.data());
+    to_int(get("reverse"), reverse_);
+    to_int(get("reverse_count"), reverse_count_);
     x_build_ = get("x_build");
     y_build_ = get("y_build");
     z_build_ = get("z_build");
@@ -223,8 +248,10 @@ class CpuEngine final : public DemEngine {
   std::size_t bytes_per_particle() const override {
     std::size_t bytes = 2 * 9 * sizeof(double) + 3 * sizeof(double)  // state, build positions
                         + sizeof(std::int32_t)                       // id
-                        + static_cast<std::size_t>(max_neighbours_) * 2 * sizeof(std::int32_t) +
-                        sizeof(std::int32_t);
+                        + static_cast<std::size_t>(max_neighbours_) *
+                              (3 * sizeof(std::int32_t) + kPairDoubles * sizeof(double))  // lists
+                        + 2 * sizeof(std::int32_t) + sizeof(std::uint32_t);  // counts, incoming
+    if (!V::Tangential::kHistory) bytes += sizeof(std::uint64_t);            // touching
     if (V::kPolydisperse) bytes += 3 * sizeof(double);
     if (V::Tangential::kHistory)
       bytes += 2 * (3 * sizeof(double) * (static_cast<std::size_t>(max_neighbours_) + kWallSlots) +
@@ -256,8 +283,13 @@ class CpuEngine final : public DemEngine {
     a.inv_inertia = inv_inertia_.data();
     a.neighbours = neighbours_.data();
     a.neighbour_count = neighbour_count_.data();
+    a.reverse = reverse_.data();
+    a.reverse_count = reverse_count_.data();
     a.max_neighbours = max_neighbours_;
     a.history = history_view(hin, hout);
+    a.touching = V::Tangential::kHistory ? hout.neighbour_mask.data() : touching_.data();
+    a.incoming = incoming_.data();
+    a.pair_load = pair_load_.data();
     a.x_build = x_build_.data();
     a.y_build = y_build_.data();
     a.z_build = z_build_.data();
@@ -322,9 +354,16 @@ class CpuEngine final : public DemEngine {
     b.neighbours = neighbours_.data();
     b.neighbour_count = neighbour_count_.data();
     b.partner_id = partner_id_.data();
+    b.reverse = reverse_.data();
+    b.reverse_count = reverse_count_.data();
     int overflow = 0;
-#pragma omp parallel for schedule(static) num_threads(threads_) reduction(| : overflow)
-    for (int i = 0; i < count_; ++i) overflow |= build_neighbours_of(i, b) ? 0 : 1;
+#pragma omp parallel num_threads(threads_) reduction(| : overflow)
+    {
+#pragma omp for schedule(static)
+      for (int i = 0; i < count_; ++i) overflow |= build_neighbours_of(i, b) ? 0 : 1;
+#pragma omp for schedule(static)
+      for (int i = 0; i < count_; ++i) overflow |= build_reverse_of(i, b) ? 0 : 1;
+    }
     if (overflow)
       throw SimulationError("neighbour list overflow (" + std::to_string(max_neighbours_) +
                             " slots): particles are packed beyond the densest packing; the "
@@ -346,7 +385,11 @@ class CpuEngine final : public DemEngine {
   StateBuffer state_[2];
   HistoryBuffer history_[2];
   std::vector<double> radius_, inv_mass_, inv_inertia_, x_build_, y_build_, z_build_;
-  std::vector<std::int32_t> id_, neighbours_, partner_id_, neighbour_count_;
+  std::vector<std::int32_t> id_, neighbours_, partner_id_, neighbour_count_, reverse_,
+      reverse_count_;
+  std::vector<std::uint64_t> touching_;  // scenes without history (else the history mask)
+  std::vector<std::uint32_t> incoming_;
+  std::vector<double> pair_load_;
   Grid grid_{};
   bool needs_rebuild_ = true;
   std::vector<StepTotals> block_totals_;

@@ -137,18 +137,35 @@ static_assert(alignof(ParticleContribution) <= alignof(double) &&
               "the shared reduction buffer is an array of doubles");
 constexpr int kSharedDoubles = kBlock * sizeof(ParticleContribution) / sizeof(double);
 
+// Pair pass: each block's dissipation goes to its block total.
 template <class V>
 __global__ void __launch_bounds__(kBlock)
-    step_kernel(const __grid_constant__ ParticleStepArgs args, ParticleContribution* block_totals) {
+    pair_kernel(const __grid_constant__ ParticleStepArgs args, ParticleContribution* block_totals) {
   __shared__ double storage[kSharedDoubles];
   auto* part = reinterpret_cast<ParticleContribution*>(storage);
   const int t = static_cast<int>(threadIdx.x);
   const int i = static_cast<int>(blockIdx.x) * kBlock + t;
   ParticleContribution c;
-  if (i < args.count) step_particle<V>(i, args, c);
+  if (i < args.count) pair_pass<V>(i, args, args, c);
   new (part + t) ParticleContribution(c);
   reduce_block(part, t);
   if (t == 0) block_totals[blockIdx.x] = part[0];
+}
+
+// Particle pass: adds each block's sums to the block total of the pair pass.
+template <class V>
+__global__ void __launch_bounds__(kBlock)
+    particle_kernel(const __grid_constant__ ParticleStepArgs args,
+                    ParticleContribution* block_totals) {
+  __shared__ double storage[kSharedDoubles];
+  auto* part = reinterpret_cast<ParticleContribution*>(storage);
+  const int t = static_cast<int>(threadIdx.x);
+  const int i = static_cast<int>(blockIdx.x) * kBlock + t;
+  ParticleContribution c;
+  if (i < args.count) particle_pass<V>(i, args, args, c, c);
+  new (part + t) ParticleContribution(c);
+  reduce_block(part, t);
+  if (t == 0) accumulate(block_totals[blockIdx.x], part[0]);
 }
 
 // One block: sums the block totals in a fixed order and adds the rebuild's overflow flag.
@@ -223,17 +240,25 @@ __global__ void neighbour_kernel(const __grid_constant__ NeighbourBuildArgs args
   if (!build_neighbours_of(i, args)) *overflow = 1;
 }
 
+// After neighbour_kernel (it reads every forward list).
+__global__ void reverse_kernel(const __grid_constant__ NeighbourBuildArgs args, int* overflow) {
+  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  if (i >= args.count) return;
+  if (!build_reverse_of(i, args)) *overflow = 1;
+}
+
 __global__ void probe_kernel() {}
 
 // What the engine needs from the kernel variant: the only code instantiated per variant is the
-// step kernel and its launcher; everything else is shared.
+// two step kernels and their launcher; everything else is shared.
 using StepLauncher = void (*)(const ParticleStepArgs&, ParticleContribution* block_totals,
                               int blocks, cudaStream_t);
 
 template <class V>
 void launch_step(const ParticleStepArgs& args, ParticleContribution* block_totals, int blocks,
                  cudaStream_t stream) {
-  step_kernel<V><<<blocks, kBlock, 0, stream>>>(args, block_totals);
+  pair_kernel<V><<<blocks, kBlock, 0, stream>>>(args, block_totals);
+  particle_kernel<V><<<blocks, kBlock, 0, stream>>>(args, block_totals);
 }
 
 struct StepVariant {
@@ -395,6 +420,8 @@ class CudaEngine final : public DemEngine {
     out["neighbours"] = as_doubles(neighbours_.download(stream_));
     out["partner_id"] = as_doubles(partner_id_.download(stream_));
     out["neighbour_count"] = as_doubles(neighbour_count_.download(stream_));
+    out["reverse"] = as_doubles(reverse_.download(stream_));
+    out["reverse_count"] = as_doubles(reverse_count_.download(stream_));
     out["x_build"] = x_build_.download(stream_);
     out["y_build"] = y_build_.download(stream_);
     out["z_build"] = z_build_.download(stream_);
@@ -421,6 +448,10 @@ class CudaEngine final : public DemEngine {
     };
     const std::vector<double>& grid = get("grid");
     if (grid.size() != 9) throw SimulationError("checkpoint DEM array 'grid' needs 9 values");
+    // Older checkpoints hold full neighbour lists (each pair twice), unpadded.
+    if (in.count("reverse") == 0 || static_cast<int>(grid[8]) % kSlotGroup != 0)
+      throw SimulationError(
+          "checkpoint written by an older pdsim (full neighbour lists); rerun without --resume");
     max_neighbours_ = static_cast<int>(grid[8]);
     size_neighbour_arrays();
     const cudaStream_t stream = stream_.get();
@@ -446,6 +477,8 @@ class CudaEngine final : public DemEngine {
     partner_id_.upload(to_int(get("partner_id"), std::int32_t{}), stream, "partner_id");
     neighbour_count_.upload(to_int(get("neighbour_count"), std::int32_t{}), stream,
                             "neighbour_count");
+    reverse_.upload(to_int(get("reverse"), std::int32_t{}), stream, "reverse");
+    reverse_count_.upload(to_int(get("reverse_count"), std::int32_t{}), stream, "reverse_count");
     needs_rebuild_ = grid[7] != 0.0;
     overflow_.fill_bytes(0, stream);
     // Before the first build a CPU checkpoint has no build positions; a rebuild comes first then.
@@ -473,9 +506,11 @@ class CudaEngine final : public DemEngine {
     for (const auto* a : {&radius_, &inv_mass_, &inv_inertia_, &radius_next_, &inv_mass_next_,
                           &inv_inertia_next_, &x_build_, &y_build_, &z_build_})
       bytes += a->bytes();
-    for (const auto* a : {&id_, &id_next_, &order_in_, &order_, &neighbours_, &partner_id_,
-                          &partner_id_old_, &neighbour_count_, &neighbour_count_old_})
+    for (const auto* a :
+         {&id_, &id_next_, &order_in_, &order_, &neighbours_, &partner_id_, &partner_id_old_,
+          &neighbour_count_, &neighbour_count_old_, &reverse_, &reverse_count_})
       bytes += a->bytes();
+    bytes += touching_.bytes() + incoming_.bytes() + pair_load_.bytes();
     bytes += cell_key_.bytes() + cell_key_sorted_.bytes();
     return bytes / static_cast<std::size_t>(count_);
   }
@@ -505,9 +540,13 @@ class CudaEngine final : public DemEngine {
       h.wall.resize(step_.history ? 3 * kWallSlots * n : 0);
       h.wall_mask.resize(n);
     }
-    for (auto* a : {&neighbours_, &partner_id_, &partner_id_old_}) a->resize(slots);
+    for (auto* a : {&neighbours_, &partner_id_, &partner_id_old_, &reverse_}) a->resize(slots);
     neighbour_count_.resize(n);
     neighbour_count_old_.resize(n);
+    reverse_count_.resize(n);
+    touching_.resize(step_.history ? 0 : n);
+    incoming_.resize(n);
+    pair_load_.resize(kPairDoubles * slots);
   }
 
   // Forgets all contacts (as the CPU engine's set_particles does).
@@ -522,6 +561,9 @@ class CudaEngine final : public DemEngine {
     neighbours_.fill_bytes(0xff, stream);
     partner_id_.fill_bytes(0xff, stream);
     neighbour_count_.fill_bytes(0, stream);
+    reverse_.fill_bytes(0xff, stream);
+    reverse_count_.fill_bytes(0, stream);
+    incoming_.fill_bytes(0, stream);
   }
 
   ParticleStepArgs args(const ContainerKinematics& container, double dt) const {
@@ -537,8 +579,13 @@ class CudaEngine final : public DemEngine {
     a.inv_inertia = inv_inertia_.data();
     a.neighbours = neighbours_.data();
     a.neighbour_count = neighbour_count_.data();
+    a.reverse = reverse_.data();
+    a.reverse_count = reverse_count_.data();
     a.max_neighbours = max_neighbours_;
     a.history = history_view(hin, hout);
+    a.touching = step_.history ? hout.neighbour_mask.data() : touching_.data();
+    a.incoming = incoming_.data();
+    a.pair_load = pair_load_.data();
     a.x_build = x_build_.data();
     a.y_build = y_build_.data();
     a.z_build = z_build_.data();
@@ -639,9 +686,13 @@ class CudaEngine final : public DemEngine {
     b.neighbours = neighbours_.data();
     b.neighbour_count = neighbour_count_.data();
     b.partner_id = partner_id_.data();
+    b.reverse = reverse_.data();
+    b.reverse_count = reverse_count_.data();
     overflow_.fill_bytes(0, stream);
     neighbour_kernel<<<blocks, kBlock, 0, stream>>>(b, overflow_.data());
     check(cudaGetLastError(), "neighbour kernel launch");
+    reverse_kernel<<<blocks, kBlock, 0, stream>>>(b, overflow_.data());
+    check(cudaGetLastError(), "reverse kernel launch");
 
     x_build_.copy_from(t.x, stream);
     y_build_.copy_from(t.y, stream);
@@ -663,7 +714,10 @@ class CudaEngine final : public DemEngine {
   DeviceArray<double> radius_, inv_mass_, inv_inertia_, x_build_, y_build_, z_build_;
   DeviceArray<double> radius_next_, inv_mass_next_, inv_inertia_next_;  // rebuild scratch
   DeviceArray<std::int32_t> id_, id_next_, neighbours_, partner_id_, partner_id_old_;
-  DeviceArray<std::int32_t> neighbour_count_, neighbour_count_old_;
+  DeviceArray<std::int32_t> neighbour_count_, neighbour_count_old_, reverse_, reverse_count_;
+  DeviceArray<std::uint64_t> touching_;  // scenes without history (else the history mask)
+  DeviceArray<std::uint32_t> incoming_;
+  DeviceArray<double> pair_load_;
   DeviceArray<std::uint32_t> cell_key_, cell_key_sorted_;
   DeviceArray<std::int32_t> order_in_, order_, cell_start_, cell_end_;
   DeviceArray<unsigned char> sort_temp_;

@@ -130,6 +130,35 @@ Pile settled_pile(EngineConfig c, std::size_t count, double spacing, double r_mi
   return pile;
 }
 
+TEST_CASE("oblique frictional impact: momentum conserved, spins in the ratio (r1/r2)^4") {
+  // Each pair's force is computed once and given to both spheres. For spheres of radii r1, r2
+  // the tangential force acts at distances r1 and r2 from the centres, so the torques are in
+  // the ratio r2/r1 at every step and the spins (I ~ r^5) end in the ratio (r1/r2)^4; linear
+  // momentum is conserved. Both orders are run, so that each sphere owns the pair once.
+  const double r1 = 2.5e-3, r2 = 2.0e-3, speed = 1.0;
+  for (double side : {1.0, -1.0}) {
+    CAPTURE(side);
+    const ContactParams contact = hertz_contact(kSteelYoung, kSteelPoisson, 0.7, 0.3);
+    EngineConfig c =
+        steel_box({0.05, 0.05, 0.05}, NormalModel::hertz, TangentialModel::history, contact, 1e-7);
+    add_particle(c, r1, {-side * 0.0025, 0, 0}, {side * speed, 0, 0});
+    add_particle(c, r2, {side * 0.0025, 0.002, 0.001}, {0, 0, 0});
+    auto engine = make_engine(c);
+    const double m1 = ball_mass(r1, kSteelDensity), m2 = ball_mass(r2, kSteelDensity);
+    for (int n = 0; n < 20000; ++n) {
+      const StepTotals& t = step(*engine, c.dt);
+      REQUIRE(norm(t.wall_force) == 0.0);  // nothing touches the walls
+    }
+    const std::vector<ParticleState> p = engine->particles();
+    const Vec3 momentum = m1 * p[0].velocity + m2 * p[1].velocity;
+    CHECK(norm(momentum - Vec3{side * m1 * speed, 0, 0}) < 1e-14 * m1 * speed);
+    CHECK(norm(p[1].position - p[0].position) > r1 + r2);  // the impact is over
+    const Vec3 w1 = p[0].spin, w2 = p[1].spin;
+    REQUIRE(norm(w1) > 10.0);  // rad/s: friction acted
+    CHECK(norm(w2 - std::pow(r1 / r2, 4) * w1) < 1e-12 * norm(w2));
+  }
+}
+
 TEST_CASE("static pile: at rest and the walls carry its weight") {
   // 200 balls dropped from a lattice, linear law (soft, so that dt is large), e = 0.3, Mindlin
   // friction 0.5. Balls resting on the floor may roll freely (no rolling resistance), so

@@ -1,0 +1,167 @@
+// Neighbour lists (kernels/neighbours.hpp): each pair within reach + skin listed exactly once,
+// by its lower index, reverse lists that point back at those slots, and tangential history
+// carried across a rebuild, with its sign flipped when the pair's owner changes.
+#include "kernels/neighbours.hpp"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <vector>
+
+namespace pdsim {
+namespace {
+
+// A random cloud sorted by grid cell (the order the engines give the builders).
+struct Cloud {
+  Grid grid;
+  std::vector<double> x, y, z, radius;
+  std::vector<std::int32_t> cell_start, cell_end, id;
+};
+
+Cloud sorted_cloud(int count, double half, double r_max, double skin) {
+  std::uint64_t seed = 2024;
+  auto uniform = [&seed] {  // a fixed linear congruential sequence in [0, 1)
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(seed >> 11) * 0x1.0p-53;
+  };
+  std::vector<Vec3> p(static_cast<std::size_t>(count));
+  std::vector<double> r(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    p[i] = {half * (2 * uniform() - 1), half * (2 * uniform() - 1), half * (2 * uniform() - 1)};
+    r[i] = r_max * (0.5 + 0.5 * uniform());
+  }
+  Cloud c;
+  c.grid = grid_around({0, 0, 0}, {half, half, half}, 2 * r_max + skin);
+  const int cells = c.grid.nx * c.grid.ny * c.grid.nz;
+  std::vector<std::int32_t> order(p.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return cell_of(c.grid, p[static_cast<std::size_t>(a)]) <
+           cell_of(c.grid, p[static_cast<std::size_t>(b)]);
+  });
+  c.cell_start.assign(static_cast<std::size_t>(cells), 0);
+  c.cell_end.assign(static_cast<std::size_t>(cells), 0);
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const Vec3 q = p[static_cast<std::size_t>(order[i])];
+    c.x.push_back(q.x), c.y.push_back(q.y), c.z.push_back(q.z);
+    c.radius.push_back(r[static_cast<std::size_t>(order[i])]);
+    c.id.push_back(order[i]);
+    const auto cell = static_cast<std::size_t>(cell_of(c.grid, q));
+    if (c.cell_end[cell] == 0) c.cell_start[cell] = static_cast<std::int32_t>(i);
+    c.cell_end[cell] = static_cast<std::int32_t>(i + 1);
+  }
+  return c;
+}
+
+TEST_CASE("forward lists hold each close pair once; reverse lists point back at its slot") {
+  constexpr int kCount = 400, kMax = 32;
+  const double r_max = 0.0025, skin = 0.3 * r_max;
+  Cloud c = sorted_cloud(kCount, 0.02, r_max, skin);
+  std::vector<std::int32_t> neighbours(kCount * kMax), count(kCount), partner(kCount * kMax),
+      reverse(kCount * kMax), reverse_count(kCount);
+  NeighbourBuildArgs b{};
+  b.count = kCount;
+  b.grid = c.grid;
+  b.x = c.x.data(), b.y = c.y.data(), b.z = c.z.data();
+  b.radius = c.radius.data();
+  b.skin = skin;
+  b.cell_start = c.cell_start.data();
+  b.cell_end = c.cell_end.data();
+  b.id = c.id.data();
+  b.max_neighbours = kMax;
+  b.neighbours = neighbours.data();
+  b.neighbour_count = count.data();
+  b.partner_id = partner.data();
+  b.reverse = reverse.data();
+  b.reverse_count = reverse_count.data();
+  for (int i = 0; i < kCount; ++i) REQUIRE(build_neighbours_of(i, b));
+  for (int i = 0; i < kCount; ++i) REQUIRE(build_reverse_of(i, b));
+
+  // Brute force over all pairs, with distances from hypot().
+  int pairs = 0;
+  for (int i = 0; i < kCount; ++i) {
+    const std::int32_t* list = neighbours.data() + i * kMax;
+    for (int j = 0; j < kCount; ++j) {
+      if (j == i) continue;
+      const double d = std::hypot(c.x[i] - c.x[j], c.y[i] - c.y[j], c.z[i] - c.z[j]);
+      const bool close = d < c.radius[i] + c.radius[j] + skin;
+      const auto listed = std::count(list, list + count[i], j);
+      CHECK(listed == (close && j > i ? 1 : 0));
+      pairs += close && j > i;
+    }
+    for (int k = count[i]; k % kSlotGroup != 0; ++k) CHECK(list[k] == i);  // padding
+    for (int k = 0; k < count[i]; ++k) CHECK(partner[i * kMax + k] == c.id[list[k]]);
+  }
+  CHECK(pairs > kCount);  // dense enough to mean something
+
+  // Every forward slot appears in its partner's reverse list, once, and nothing else does.
+  int reverse_entries = 0;
+  for (int j = 0; j < kCount; ++j) {
+    for (int r = 0; r < reverse_count[j]; ++r) {
+      const int s = reverse[j * kMax + r];
+      CHECK(s / kMax < j);
+      CHECK(neighbours[s] == j);
+      CHECK(s % kMax < count[s / kMax]);
+    }
+    reverse_entries += reverse_count[j];
+  }
+  CHECK(reverse_entries == pairs);
+}
+
+// Two particles that stay in contact across a rebuild. `swap`: the cell sort exchanges them, so
+// that the pair's owner (the lower index) changes.
+std::vector<double> carried_history(bool swap, bool live) {
+  constexpr int kMax = 4;
+  const Vec3 h{1e-7, -2e-7, 3e-7};
+  const std::int32_t ids[2] = {7, 9};  // the old order: old index 0 owns the pair
+  std::vector<std::int32_t> old_partner = {9, 0, 0, 0, -1, -1, -1, -1}, old_count = {1, 0};
+  std::vector<std::uint64_t> old_mask = {live ? 1u : 0u, 0}, new_mask(2, 0);
+  std::vector<double> old_history(3 * 2 * kMax, 0.0), new_history(3 * 2 * kMax, 0.0);
+  old_history[0] = h.x, old_history[1] = h.y, old_history[2] = h.z;
+  std::vector<std::int32_t> old_index = {0, 1}, id = {ids[0], ids[1]};
+  if (swap) old_index = {1, 0}, id = {ids[1], ids[0]};
+  std::vector<double> x = {0.0, 0.0049}, y = {0, 0}, z = {0, 0};
+  std::vector<std::int32_t> cell_start = {0}, cell_end = {2}, neighbours(2 * kMax), count(2),
+                            partner(2 * kMax);
+  NeighbourBuildArgs b{};
+  b.count = 2;
+  b.grid = {{-1, -1, -1}, 2.0, 1, 1, 1};
+  b.x = x.data(), b.y = y.data(), b.z = z.data();
+  b.mono_radius = 0.0025;
+  b.skin = 0.001;
+  b.cell_start = cell_start.data();
+  b.cell_end = cell_end.data();
+  b.id = id.data();
+  b.max_neighbours = kMax;
+  b.neighbours = neighbours.data();
+  b.neighbour_count = count.data();
+  b.partner_id = partner.data();
+  b.old_index = old_index.data();
+  b.old_partner_id = old_partner.data();
+  b.old_neighbour_count = old_count.data();
+  b.old_mask = old_mask.data();
+  b.old_history = old_history.data();
+  b.new_mask = new_mask.data();
+  b.new_history = new_history.data();
+  for (int i = 0; i < 2; ++i) REQUIRE(build_neighbours_of(i, b));
+  REQUIRE(count[0] == 1);
+  REQUIRE(count[1] == 0);
+  CHECK(new_mask[0] == (live ? 1u : 0u));
+  CHECK(new_mask[1] == 0u);
+  return {new_history[0], new_history[1], new_history[2]};
+}
+
+TEST_CASE("tangential history survives a rebuild, with its sign flipped when the owner swaps") {
+  // The stored displacement is the owner's (xi_j = -xi_i for the partner), so a swap negates it.
+  const std::vector<double> same = carried_history(false, true);
+  const std::vector<double> swapped = carried_history(true, true);
+  CHECK(same == std::vector<double>{1e-7, -2e-7, 3e-7});
+  CHECK(swapped == std::vector<double>{-1e-7, 2e-7, -3e-7});
+  // A slot whose contact had ended carries nothing.
+  CHECK(carried_history(true, false) == std::vector<double>{0, 0, 0});
+}
+
+}  // namespace
+}  // namespace pdsim

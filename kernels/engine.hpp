@@ -50,6 +50,20 @@ inline ParticleStepArgs scene_step_args(const EngineConfig& c) {
 }
 using StateArrays = std::map<std::string, std::vector<double>>;
 
+// Contact history as a checkpoint stores it: `slots` slots of 3 values per particle, only those
+// whose bit is set in the particle's mask. The others hold stale values that are never read and
+// would make two equal states save differently. Scenes without history have none (empty).
+template <class Mask>
+std::vector<double> live_history(std::vector<double> history, const std::vector<Mask>& mask,
+                                 int slots) {
+  if (history.empty()) return history;
+  for (std::size_t i = 0; i < mask.size(); ++i)
+    for (int k = 0; k < slots; ++k)
+      if (!(static_cast<std::uint64_t>(mask[i]) >> k & 1u))
+        for (int c = 0; c < 3; ++c) history[3 * (i * static_cast<std::size_t>(slots) + k) + c] = 0;
+  return history;
+}
+
 class DemEngine {
  public:
   virtual ~DemEngine() = default;

@@ -47,6 +47,15 @@ inline int neighbour_slots(double r_min, double r_max, double skin) {
   return rounded < kSlotGroup ? kSlotGroup : (rounded > 64 ? 64 : rounded);
 }
 
+// Verlet criterion. A particle moves dt |v_{n+1}| in a step, so the sum over the steps since
+// the last build of dt times the step's largest speed bounds every particle's drift (no build
+// positions to store or compare); the lists stay valid while it is under half the skin. Adds
+// the step to `travel` and says whether the lists must be rebuilt.
+inline bool lists_expired(double& travel, double speed_sq, double dt, double skin) {
+  travel += dt * sqrt(speed_sq);
+  return travel > 0.5 * skin;
+}
+
 // Grid around the container at `centre`, one cell of margin on every side.
 inline Grid grid_around(Vec3 centre, Vec3 half_size, double cell) {
   Grid g;

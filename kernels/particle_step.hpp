@@ -88,7 +88,6 @@ struct ParticleStepArgs {
   std::uint64_t* touching;  // forward slots in contact (history.neighbour_mask_out if kept)
   std::uint32_t* incoming;  // set when a lower particle touches i; the particle pass clears it
   double* pair_load;        // count x max_neighbours x kPairDoubles
-  const double *x_build, *y_build, *z_build;  // positions at the last neighbour-list build
   ContactParams contact;
   ContainerGeometry geometry;
   ContainerKinematics container;
@@ -99,7 +98,8 @@ struct ParticleStepArgs {
 struct ParticleContribution {
   Vec3 wall_force;   // on the container
   Vec3 wall_torque;  // on the container, about its centre (Rotating variants only)
-  double dissipated_normal = 0, dissipated_tangential = 0, kinetic = 0, drift_sq = 0;
+  double dissipated_normal = 0, dissipated_tangential = 0, kinetic = 0;
+  double speed_sq = 0;  // largest |v|^2 at the end of the step (bounds the drift since a rebuild)
   int flags = 0;
 };
 
@@ -109,7 +109,7 @@ PDSIM_HD void accumulate(ParticleContribution& sum, const ParticleContribution& 
   sum.dissipated_normal += c.dissipated_normal;
   sum.dissipated_tangential += c.dissipated_tangential;
   sum.kinetic += c.kinetic;
-  sum.drift_sq = max_of(sum.drift_sq, c.drift_sq);
+  sum.speed_sq = max_of(sum.speed_sq, c.speed_sq);
   sum.flags |= c.flags;
 }
 
@@ -480,9 +480,9 @@ PDSIM_HOT void particle_pass(int i, const ParticleStepArgs& a, const ParticleSte
   a.out.wy[i] = w_new.y;
   a.out.wz[i] = w_new.z;
 
-  sum.kinetic += 0.5 * (b.mass * dot(v_new, v_new) + b.inertia * dot(w_new, w_new));
-  const Vec3 drift{x_new.x - a.x_build[i], x_new.y - a.y_build[i], x_new.z - a.z_build[i]};
-  sum.drift_sq = max_of(sum.drift_sq, dot(drift, drift));
+  const double speed_sq = dot(v_new, v_new);
+  sum.kinetic += 0.5 * (b.mass * speed_sq + b.inertia * dot(w_new, w_new));
+  sum.speed_sq = max_of(sum.speed_sq, speed_sq);
 }
 
 }  // namespace pdsim

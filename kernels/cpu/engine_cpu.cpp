@@ -67,6 +67,7 @@ class CpuEngine final : public DemEngine {
 
   const StepTotals& compute(const ContainerKinematics& container, double dt) override {
     if (needs_rebuild_) rebuild(container);
+    dt_ = dt;
     const ParticleStepArgs a = args(container, dt);
     const int blocks = (count_ + kBlock - 1) / kBlock;
     block_totals_.assign(static_cast<std::size_t>(blocks), StepTotals{});
@@ -110,8 +111,7 @@ class CpuEngine final : public DemEngine {
 
   void accept() override {
     current_ ^= 1;
-    const double half_skin = 0.5 * skin_;
-    if (totals_.drift_sq > half_skin * half_skin) needs_rebuild_ = true;
+    if (lists_expired(travel_, totals_.speed_sq, dt_, skin_)) needs_rebuild_ = true;
   }
 
   int count() const override {
@@ -159,7 +159,9 @@ class CpuEngine final : public DemEngine {
     reverse_count_.assign(n, 0);
     touching_.assign(V::Tangential::kHistory ? 0 : n, 0);
     incoming_.assign(n, 0);
-    pair_load_.assign(kPairDoubles * slots, 0.0);
+    // Written before it is read, and only for pairs in contact: left uninitialised, so that
+    // the pages of slots never used are never touched.
+    pair_load_.reset(new double[kPairDoubles * slots]);
     needs_rebuild_ = true;
   }
 
@@ -171,8 +173,8 @@ class CpuEngine final : public DemEngine {
     out["id"].assign(id_.begin(), id_.end());
     out["radius"] = radius_;
     const HistoryBuffer& h = history_[current_];
-    out["history"] = h.neighbour;
-    out["wall_history"] = h.wall;
+    out["history"] = live_history(h.neighbour, h.neighbour_mask, max_neighbours_);
+    out["wall_history"] = live_history(h.wall, h.wall_mask, kWallSlots);
     out["wall_mask"].assign(h.wall_mask.begin(), h.wall_mask.end());
     auto& mask_lo = out["mask_lo"];
     auto& mask_hi = out["mask_hi"];
@@ -185,9 +187,6 @@ class CpuEngine final : public DemEngine {
     out["neighbour_count"].assign(neighbour_count_.begin(), neighbour_count_.end());
     out["reverse"].assign(reverse_.begin(), reverse_.end());
     out["reverse_count"].assign(reverse_count_.begin(), reverse_count_.end());
-    out["x_build"] = x_build_;
-    out["y_build"] = y_build_;
-    out["z_build"] = z_build_;
     out["grid"] = {grid_.origin.x,
                    grid_.origin.y,
                    grid_.origin.z,
@@ -196,7 +195,8 @@ class CpuEngine final : public DemEngine {
                    static_cast<double>(grid_.ny),
                    static_cast<double>(grid_.nz),
                    needs_rebuild_ ? 1.0 : 0.0,
-                   static_cast<double>(max_neighbours_)};
+                   static_cast<double>(max_neighbours_),
+                   travel_};
     return out;
   }
 
@@ -208,10 +208,11 @@ class CpuEngine final : public DemEngine {
     };
     const std::vector<double>& grid = get("grid");
     // Older checkpoints hold full neighbour lists (each pair twice), unpadded.
-    if (in.count("reverse") == 0 || static_cast<int>(grid.at(8)) % kSlotGroup != 0)
+    if (in.count("reverse") == 0 || grid.size() != 10 ||
+        static_cast<int>(grid[8]) % kSlotGroup != 0)
       throw SimulationError(
           "checkpoint written by an older pdsim (full neighbour lists); rerun without --resume");
-    max_neighbours_ = static_cast<int>(grid.at(8));
+    max_neighbours_ = static_cast<int>(grid[8]);
     set_particles(config_.particles);  // sizes every array for max_neighbours_
     StateBuffer& s = state_[current_];
     const char* names[9] = {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"};
@@ -234,9 +235,7 @@ class CpuEngine final : public DemEngine {
     to_int(get("neighbour_count"), neighbour_count_);
     to_int(get("reverse"), reverse_);
     to_int(get("reverse_count"), reverse_count_);
-    x_build_ = get("x_build");
-    y_build_ = get("y_build");
-    z_build_ = get("z_build");
+    travel_ = grid.at(9);
     grid_ = {{grid[0], grid[1], grid[2]},
              grid[3],
              static_cast<int>(grid[4]),
@@ -246,8 +245,8 @@ class CpuEngine final : public DemEngine {
   }
 
   std::size_t bytes_per_particle() const override {
-    std::size_t bytes = 2 * 9 * sizeof(double) + 3 * sizeof(double)  // state, build positions
-                        + sizeof(std::int32_t)                       // id
+    std::size_t bytes = 2 * 9 * sizeof(double)  // state, double buffered
+                        + sizeof(std::int32_t)  // id
                         + static_cast<std::size_t>(max_neighbours_) *
                               (3 * sizeof(std::int32_t) + kPairDoubles * sizeof(double))  // lists
                         + 2 * sizeof(std::int32_t) + sizeof(std::uint32_t);  // counts, incoming
@@ -289,10 +288,7 @@ class CpuEngine final : public DemEngine {
     a.history = history_view(hin, hout);
     a.touching = V::Tangential::kHistory ? hout.neighbour_mask.data() : touching_.data();
     a.incoming = incoming_.data();
-    a.pair_load = pair_load_.data();
-    a.x_build = x_build_.data();
-    a.y_build = y_build_.data();
-    a.z_build = z_build_.data();
+    a.pair_load = pair_load_.get();
     return a;
   }
 
@@ -372,9 +368,7 @@ class CpuEngine final : public DemEngine {
       std::swap(hin.neighbour, scratch.neighbour);
       std::swap(hin.neighbour_mask, scratch.neighbour_mask);
     }
-    x_build_ = s.x;
-    y_build_ = s.y;
-    z_build_ = s.z;
+    travel_ = 0;
     needs_rebuild_ = false;
   }
 
@@ -382,14 +376,15 @@ class CpuEngine final : public DemEngine {
   ParticleStepArgs scene_args_ = scene_step_args(config_);
   int count_ = 0, threads_ = 1, max_neighbours_ = 1, current_ = 0;
   double r_min_ = 0, r_max_ = 0, skin_ = 0;
+  double dt_ = 0, travel_ = 0;  // last step size; drift bound since the last build (m)
   StateBuffer state_[2];
   HistoryBuffer history_[2];
-  std::vector<double> radius_, inv_mass_, inv_inertia_, x_build_, y_build_, z_build_;
+  std::vector<double> radius_, inv_mass_, inv_inertia_;
   std::vector<std::int32_t> id_, neighbours_, partner_id_, neighbour_count_, reverse_,
       reverse_count_;
   std::vector<std::uint64_t> touching_;  // scenes without history (else the history mask)
   std::vector<std::uint32_t> incoming_;
-  std::vector<double> pair_load_;
+  std::unique_ptr<double[]> pair_load_;
   Grid grid_{};
   bool needs_rebuild_ = true;
   std::vector<StepTotals> block_totals_;

@@ -313,8 +313,8 @@ class CudaEngine final : public DemEngine {
     const std::size_t n = static_cast<std::size_t>(count_);
     for (auto& s : state_)
       for (auto* a : s.all) a->resize(n);
-    for (auto* a : {&radius_, &inv_mass_, &inv_inertia_, &radius_next_, &inv_mass_next_,
-                    &inv_inertia_next_, &x_build_, &y_build_, &z_build_})
+    for (auto* a :
+         {&radius_, &inv_mass_, &inv_inertia_, &radius_next_, &inv_mass_next_, &inv_inertia_next_})
       a->resize(n);
     for (auto* a : {&id_, &id_next_, &order_in_, &order_}) a->resize(n);
     cell_key_.resize(n);
@@ -335,6 +335,7 @@ class CudaEngine final : public DemEngine {
 
   const StepTotals& compute(const ContainerKinematics& container, double dt) override {
     if (needs_rebuild_) rebuild(container);
+    dt_ = dt;
     const ParticleStepArgs a = args(container, dt);
     const int blocks = blocks_for(count_);
     step_.launch(a, block_totals_.data(), blocks, stream_.get());
@@ -356,8 +357,7 @@ class CudaEngine final : public DemEngine {
 
   void accept() override {
     current_ ^= 1;
-    const double half_skin = 0.5 * skin_;
-    if (totals_.drift_sq > half_skin * half_skin) needs_rebuild_ = true;
+    if (lists_expired(travel_, totals_.speed_sq, dt_, skin_)) needs_rebuild_ = true;
   }
 
   int count() const override { return count_; }
@@ -408,12 +408,14 @@ class CudaEngine final : public DemEngine {
     out["id"] = as_doubles(id_.download(stream_));
     out["radius"] = radius_.download(stream_);
     const DeviceHistory& h = history_[current_];
-    out["history"] = h.neighbour.download(stream_);
-    out["wall_history"] = h.wall.download(stream_);
-    out["wall_mask"] = as_doubles(h.wall_mask.download(stream_));
+    const std::vector<std::uint64_t> neighbour_mask = h.neighbour_mask.download(stream_);
+    const std::vector<std::uint8_t> wall_mask = h.wall_mask.download(stream_);
+    out["history"] = live_history(h.neighbour.download(stream_), neighbour_mask, max_neighbours_);
+    out["wall_history"] = live_history(h.wall.download(stream_), wall_mask, kWallSlots);
+    out["wall_mask"] = as_doubles(wall_mask);
     auto& mask_lo = out["mask_lo"];
     auto& mask_hi = out["mask_hi"];
-    for (std::uint64_t m : h.neighbour_mask.download(stream_)) {
+    for (std::uint64_t m : neighbour_mask) {
       mask_lo.push_back(static_cast<double>(m & 0xffffffffu));
       mask_hi.push_back(static_cast<double>(m >> 32));
     }
@@ -422,9 +424,6 @@ class CudaEngine final : public DemEngine {
     out["neighbour_count"] = as_doubles(neighbour_count_.download(stream_));
     out["reverse"] = as_doubles(reverse_.download(stream_));
     out["reverse_count"] = as_doubles(reverse_count_.download(stream_));
-    out["x_build"] = x_build_.download(stream_);
-    out["y_build"] = y_build_.download(stream_);
-    out["z_build"] = z_build_.download(stream_);
     out["grid"] = {grid_.origin.x,
                    grid_.origin.y,
                    grid_.origin.z,
@@ -433,7 +432,8 @@ class CudaEngine final : public DemEngine {
                    static_cast<double>(grid_.ny),
                    static_cast<double>(grid_.nz),
                    needs_rebuild_ ? 1.0 : 0.0,
-                   static_cast<double>(max_neighbours_)};
+                   static_cast<double>(max_neighbours_),
+                   travel_};
     return out;
   }
 
@@ -447,9 +447,9 @@ class CudaEngine final : public DemEngine {
       return std::vector<decltype(tag)>(a.begin(), a.end());
     };
     const std::vector<double>& grid = get("grid");
-    if (grid.size() != 9) throw SimulationError("checkpoint DEM array 'grid' needs 9 values");
     // Older checkpoints hold full neighbour lists (each pair twice), unpadded.
-    if (in.count("reverse") == 0 || static_cast<int>(grid[8]) % kSlotGroup != 0)
+    if (in.count("reverse") == 0 || grid.size() != 10 ||
+        static_cast<int>(grid[8]) % kSlotGroup != 0)
       throw SimulationError(
           "checkpoint written by an older pdsim (full neighbour lists); rerun without --resume");
     max_neighbours_ = static_cast<int>(grid[8]);
@@ -481,13 +481,7 @@ class CudaEngine final : public DemEngine {
     reverse_count_.upload(to_int(get("reverse_count"), std::int32_t{}), stream, "reverse_count");
     needs_rebuild_ = grid[7] != 0.0;
     overflow_.fill_bytes(0, stream);
-    // Before the first build a CPU checkpoint has no build positions; a rebuild comes first then.
-    const char* build_names[3] = {"x_build", "y_build", "z_build"};
-    DeviceArray<double>* build[3] = {&x_build_, &y_build_, &z_build_};
-    for (int k = 0; k < 3; ++k) {
-      const std::vector<double>& b = get(build_names[k]);
-      if (!b.empty() || !needs_rebuild_) build[k]->upload(b, stream, build_names[k]);
-    }
+    travel_ = grid[9];
     grid_ = {{grid[0], grid[1], grid[2]},
              grid[3],
              static_cast<int>(grid[4]),
@@ -503,8 +497,8 @@ class CudaEngine final : public DemEngine {
     for (const auto& h : history_)
       bytes +=
           h.neighbour.bytes() + h.wall.bytes() + h.neighbour_mask.bytes() + h.wall_mask.bytes();
-    for (const auto* a : {&radius_, &inv_mass_, &inv_inertia_, &radius_next_, &inv_mass_next_,
-                          &inv_inertia_next_, &x_build_, &y_build_, &z_build_})
+    for (const auto* a :
+         {&radius_, &inv_mass_, &inv_inertia_, &radius_next_, &inv_mass_next_, &inv_inertia_next_})
       bytes += a->bytes();
     for (const auto* a :
          {&id_, &id_next_, &order_in_, &order_, &neighbours_, &partner_id_, &partner_id_old_,
@@ -586,9 +580,6 @@ class CudaEngine final : public DemEngine {
     a.touching = step_.history ? hout.neighbour_mask.data() : touching_.data();
     a.incoming = incoming_.data();
     a.pair_load = pair_load_.data();
-    a.x_build = x_build_.data();
-    a.y_build = y_build_.data();
-    a.z_build = z_build_.data();
     return a;
   }
 
@@ -694,9 +685,7 @@ class CudaEngine final : public DemEngine {
     reverse_kernel<<<blocks, kBlock, 0, stream>>>(b, overflow_.data());
     check(cudaGetLastError(), "reverse kernel launch");
 
-    x_build_.copy_from(t.x, stream);
-    y_build_.copy_from(t.y, stream);
-    z_build_.copy_from(t.z, stream);
+    travel_ = 0;
     current_ = next;
     needs_rebuild_ = false;
   }
@@ -707,11 +696,12 @@ class CudaEngine final : public DemEngine {
   Stream stream_;  // declared before the arrays, so destroyed after them
   int count_ = 0, max_neighbours_ = 1, current_ = 0;
   double r_min_ = 0, r_max_ = 0, skin_ = 0;
+  double dt_ = 0, travel_ = 0;  // last step size; drift bound since the last build (m)
   std::string device_name_;
   std::vector<double> radius_host_;
   DeviceState state_[2];
   DeviceHistory history_[2];
-  DeviceArray<double> radius_, inv_mass_, inv_inertia_, x_build_, y_build_, z_build_;
+  DeviceArray<double> radius_, inv_mass_, inv_inertia_;
   DeviceArray<double> radius_next_, inv_mass_next_, inv_inertia_next_;  // rebuild scratch
   DeviceArray<std::int32_t> id_, id_next_, neighbours_, partner_id_, partner_id_old_;
   DeviceArray<std::int32_t> neighbour_count_, neighbour_count_old_, reverse_, reverse_count_;

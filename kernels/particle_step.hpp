@@ -63,9 +63,6 @@ inline SphereMass sphere_mass(double radius, double density) {
   return {mass, inertia, 1.0 / mass, 1.0 / inertia};
 }
 
-// Per forward slot in contact: force on the owner, torque on the owner, torque on the partner.
-constexpr int kPairDoubles = 9;
-
 struct ParticleStepArgs {
   int count;
   double dt;
@@ -87,7 +84,7 @@ struct ParticleStepArgs {
   // Written by the pair pass, read by the particle pass.
   std::uint64_t* touching;  // forward slots in contact (history.neighbour_mask_out if kept)
   std::uint32_t* incoming;  // set when a lower particle touches i; the particle pass clears it
-  double* pair_load;        // count x max_neighbours x kPairDoubles
+  double* pair_load;        // count x max_neighbours x pair_doubles<V>()
   ContactParams contact;
   ContainerGeometry geometry;
   ContainerKinematics container;
@@ -95,6 +92,14 @@ struct ParticleStepArgs {
 };
 
 // What one particle adds to the step totals (reduced by the launcher in a fixed order).
+// Per forward slot in contact: force on the owner, torque on the owner, and torque on the
+// partner. Equal spheres without rolling resistance have equal torques (the same radius times
+// the same tangential force), so the third is not stored.
+template <class V>
+constexpr int pair_doubles() {
+  return V::kPolydisperse || V::kRolling ? 9 : 6;
+}
+
 struct ParticleContribution {
   Vec3 wall_force;   // on the container
   Vec3 wall_torque;  // on the container, about its centre (Rotating variants only)
@@ -239,10 +244,10 @@ PDSIM_COLD void pair_contacts(int i, std::uint64_t touching, const ParticleStepA
                                 b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
                                 sum.dissipated_normal, sum.dissipated_tangential);
     if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, base + k, xi);
-    double* slot = a.pair_load + kPairDoubles * (base + k);
+    double* slot = a.pair_load + pair_doubles<V>() * (base + k);
     store3(slot, 0, out.force);
     store3(slot, 1, out.torque);
-    store3(slot, 2, out.partner_torque);
+    if constexpr (pair_doubles<V>() == 9) store3(slot, 2, out.partner_torque);
     raise_flag(a.incoming + j);
   }
 }
@@ -254,7 +259,7 @@ PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
   Load load;
   const int base = i * a.max_neighbours;
   for (std::uint64_t m = a.touching[i]; m; m &= m - 1) {
-    const double* slot = a.pair_load + kPairDoubles * (base + lowest_bit(m));
+    const double* slot = a.pair_load + pair_doubles<V>() * (base + lowest_bit(m));
     load.force += load3(slot, 0);
     load.torque += load3(slot, 1);
   }
@@ -264,9 +269,9 @@ PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
       const int s = a.reverse[base + r];
       const int owner = s / a.max_neighbours;
       if (a.touching[owner] >> (s - owner * a.max_neighbours) & 1u) {
-        const double* slot = a.pair_load + kPairDoubles * s;
+        const double* slot = a.pair_load + pair_doubles<V>() * s;
         load.force -= load3(slot, 0);
-        load.torque += load3(slot, 2);
+        load.torque += load3(slot, pair_doubles<V>() == 9 ? 2 : 1);
       }
     }
   }

@@ -161,7 +161,7 @@ class CpuEngine final : public DemEngine {
     incoming_.assign(n, 0);
     // Written before it is read, and only for pairs in contact: left uninitialised, so that
     // the pages of slots never used are never touched.
-    pair_load_.reset(new double[kPairDoubles * slots]);
+    pair_load_.reset(new double[pair_doubles<V>() * slots]);
     needs_rebuild_ = true;
   }
 
@@ -245,12 +245,13 @@ class CpuEngine final : public DemEngine {
   }
 
   std::size_t bytes_per_particle() const override {
-    std::size_t bytes = 2 * 9 * sizeof(double)  // state, double buffered
-                        + sizeof(std::int32_t)  // id
-                        + static_cast<std::size_t>(max_neighbours_) *
-                              (3 * sizeof(std::int32_t) + kPairDoubles * sizeof(double))  // lists
-                        + 2 * sizeof(std::int32_t) + sizeof(std::uint32_t);  // counts, incoming
-    if (!V::Tangential::kHistory) bytes += sizeof(std::uint64_t);            // touching
+    std::size_t bytes =
+        2 * 9 * sizeof(double)  // state, double buffered
+        + sizeof(std::int32_t)  // id
+        + static_cast<std::size_t>(max_neighbours_) *
+              (3 * sizeof(std::int32_t) + pair_doubles<V>() * sizeof(double))  // lists
+        + 2 * sizeof(std::int32_t) + sizeof(std::uint32_t);                    // counts, incoming
+    if (!V::Tangential::kHistory) bytes += sizeof(std::uint64_t);              // touching
     if (V::kPolydisperse) bytes += 3 * sizeof(double);
     if (V::Tangential::kHistory)
       bytes += 2 * (3 * sizeof(double) * (static_cast<std::size_t>(max_neighbours_) + kWallSlots) +

@@ -265,12 +265,14 @@ struct StepVariant {
   StepLauncher launch;
   std::string name;
   bool history, polydisperse;
+  int pair_doubles;
 };
 
 struct PickStep {
   template <class V>
   StepVariant operator()() const {
-    return {&launch_step<V>, variant_string<V>(), V::Tangential::kHistory, V::kPolydisperse};
+    return {&launch_step<V>, variant_string<V>(), V::Tangential::kHistory, V::kPolydisperse,
+            pair_doubles<V>()};
   }
 };
 
@@ -540,7 +542,7 @@ class CudaEngine final : public DemEngine {
     reverse_count_.resize(n);
     touching_.resize(step_.history ? 0 : n);
     incoming_.resize(n);
-    pair_load_.resize(kPairDoubles * slots);
+    pair_load_.resize(static_cast<std::size_t>(step_.pair_doubles) * slots);
   }
 
   // Forgets all contacts (as the CPU engine's set_particles does).

@@ -150,23 +150,20 @@ PDSIM_HD bool build_neighbours_of(int i, const NeighbourBuildArgs& a) {
   if (a.new_mask) {
     // Carry the tangential history of contacts that survive the rebuild. A pair's history
     // lives with its owner (the lower index); when the owners swap, it changes sign.
+    auto live_slot = [&](int old_owner, std::int32_t partner) {  // flat old slot, or -1
+      const int m = find_slot(a.old_partner_id + old_owner * a.max_neighbours,
+                              a.old_neighbour_count[old_owner], partner);
+      return m >= 0 && (a.old_mask[old_owner] >> m & 1u) ? old_owner * a.max_neighbours + m : -1;
+    };
     std::uint64_t mask = 0;
     for (int k = 0; k < n; ++k) {
-      const int j = a.neighbours[base + k];
-      int old_owner = a.old_index[i];
-      std::int32_t old_partner = a.partner_id[base + k];
       double sign = 1;
-      int m = find_slot(a.old_partner_id + old_owner * a.max_neighbours,
-                        a.old_neighbour_count[old_owner], old_partner);
-      if (m < 0 || !(a.old_mask[old_owner] >> m & 1u)) {
-        old_owner = a.old_index[j];
-        old_partner = a.id[i];
+      int from = live_slot(a.old_index[i], a.partner_id[base + k]);
+      if (from < 0) {
         sign = -1;
-        m = find_slot(a.old_partner_id + old_owner * a.max_neighbours,
-                      a.old_neighbour_count[old_owner], old_partner);
-        if (m < 0 || !(a.old_mask[old_owner] >> m & 1u)) continue;
+        from = live_slot(a.old_index[a.neighbours[base + k]], a.id[i]);
       }
-      const int from = old_owner * a.max_neighbours + m;
+      if (from < 0) continue;
       for (int c = 0; c < 3; ++c)
         a.new_history[3 * (base + k) + c] = sign * a.old_history[3 * from + c];
       mask |= std::uint64_t{1} << k;

@@ -32,13 +32,14 @@ struct Variant {
 };
 
 // Live contact-history slots are marked in bit masks, so that absent contacts cost no memory
-// traffic (a slot is read only when its bit is set in the input mask).
+// traffic (a slot is read only when its bit is set in the input mask). Every scene has the
+// masks: the pair pass marks the touching slots there for the particle pass.
 struct HistoryArrays {
   const double* neighbour_in;  // count x max_neighbours x 3
   double* neighbour_out;
   const std::uint64_t* neighbour_mask_in;
-  std::uint64_t* neighbour_mask_out;
-  const double* wall_in;  // count x kWallSlots x 3
+  std::uint64_t* neighbour_mask_out;  // forward slots in contact, set by the pair pass
+  const double* wall_in;              // count x kWallSlots x 3
   double* wall_out;
   const std::uint8_t* wall_mask_in;
   std::uint8_t* wall_mask_out;
@@ -81,8 +82,7 @@ struct ParticleStepArgs {
   const std::int32_t* reverse_count;
   int max_neighbours;
   HistoryArrays history;
-  // Written by the pair pass, read by the particle pass.
-  std::uint64_t* touching;  // forward slots in contact (history.neighbour_mask_out if kept)
+  // Written by the pair pass, read by the particle pass (with history.neighbour_mask_out).
   std::uint32_t* incoming;  // set when a lower particle touches i; the particle pass clears it
   double* pair_load;        // count x max_neighbours x pair_doubles<V>()
   ContactParams contact;
@@ -91,7 +91,6 @@ struct ParticleStepArgs {
   Vec3 gravity;  // m/s^2
 };
 
-// What one particle adds to the step totals (reduced by the launcher in a fixed order).
 // Per forward slot in contact: force on the owner, torque on the owner, and torque on the
 // partner. Equal spheres without rolling resistance have equal torques (the same radius times
 // the same tangential force), so the third is not stored.
@@ -100,6 +99,7 @@ constexpr int pair_doubles() {
   return V::kPolydisperse || V::kRolling ? 9 : 6;
 }
 
+// What one particle adds to the step totals (reduced by the launcher in a fixed order).
 struct ParticleContribution {
   Vec3 wall_force;   // on the container
   Vec3 wall_torque;  // on the container, about its centre (Rotating variants only)
@@ -258,7 +258,7 @@ template <class V>
 PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
   Load load;
   const int base = i * a.max_neighbours;
-  for (std::uint64_t m = a.touching[i]; m; m &= m - 1) {
+  for (std::uint64_t m = a.history.neighbour_mask_out[i]; m; m &= m - 1) {
     const double* slot = a.pair_load + pair_doubles<V>() * (base + lowest_bit(m));
     load.force += load3(slot, 0);
     load.torque += load3(slot, 1);
@@ -268,7 +268,7 @@ PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
     for (int r = 0; r < a.reverse_count[i]; ++r) {
       const int s = a.reverse[base + r];
       const int owner = s / a.max_neighbours;
-      if (a.touching[owner] >> (s - owner * a.max_neighbours) & 1u) {
+      if (a.history.neighbour_mask_out[owner] >> (s - owner * a.max_neighbours) & 1u) {
         const double* slot = a.pair_load + pair_doubles<V>() * s;
         load.force -= load3(slot, 0);
         load.torque += load3(slot, pair_doubles<V>() == 9 ? 2 : 1);
@@ -429,7 +429,7 @@ PDSIM_HOT void pair_pass(int i, const ParticleStepArgs& a, const ParticleStepArg
   const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
   const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
   const std::uint64_t touching = touching_slots<V>(i, x, radius, a);
-  a.touching[i] = touching;
+  a.history.neighbour_mask_out[i] = touching;
   if (touching) pair_contacts<V>(i, touching, shared, sum);
 }
 
@@ -442,7 +442,7 @@ PDSIM_HOT void particle_pass(int i, const ParticleStepArgs& a, const ParticleSte
   const Body b = body<V>(i, a);
   const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
   Vec3 force, torque;
-  if (a.touching[i] | a.incoming[i]) {
+  if (a.history.neighbour_mask_out[i] | a.incoming[i]) {
     const Load l = pair_loads<V>(i, shared);
     force = l.force;
     torque = l.torque;

@@ -157,7 +157,6 @@ class CpuEngine final : public DemEngine {
     neighbour_count_.assign(n, 0);
     reverse_.assign(slots, -1);
     reverse_count_.assign(n, 0);
-    touching_.assign(V::Tangential::kHistory ? 0 : n, 0);
     incoming_.assign(n, 0);
     // Written before it is read, and only for pairs in contact: left uninitialised, so that
     // the pages of slots never used are never touched.
@@ -251,7 +250,6 @@ class CpuEngine final : public DemEngine {
         + static_cast<std::size_t>(max_neighbours_) *
               (3 * sizeof(std::int32_t) + pair_doubles<V>() * sizeof(double))  // lists
         + 2 * sizeof(std::int32_t) + sizeof(std::uint32_t);                    // counts, incoming
-    if (!V::Tangential::kHistory) bytes += sizeof(std::uint64_t);              // touching
     if (V::kPolydisperse) bytes += 3 * sizeof(double);
     if (V::Tangential::kHistory)
       bytes += 2 * (3 * sizeof(double) * (static_cast<std::size_t>(max_neighbours_) + kWallSlots) +
@@ -287,7 +285,6 @@ class CpuEngine final : public DemEngine {
     a.reverse_count = reverse_count_.data();
     a.max_neighbours = max_neighbours_;
     a.history = history_view(hin, hout);
-    a.touching = V::Tangential::kHistory ? hout.neighbour_mask.data() : touching_.data();
     a.incoming = incoming_.data();
     a.pair_load = pair_load_.get();
     return a;
@@ -383,7 +380,6 @@ class CpuEngine final : public DemEngine {
   std::vector<double> radius_, inv_mass_, inv_inertia_;
   std::vector<std::int32_t> id_, neighbours_, partner_id_, neighbour_count_, reverse_,
       reverse_count_;
-  std::vector<std::uint64_t> touching_;  // scenes without history (else the history mask)
   std::vector<std::uint32_t> incoming_;
   std::unique_ptr<double[]> pair_load_;
   Grid grid_{};

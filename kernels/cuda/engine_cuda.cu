@@ -506,7 +506,7 @@ class CudaEngine final : public DemEngine {
          {&id_, &id_next_, &order_in_, &order_, &neighbours_, &partner_id_, &partner_id_old_,
           &neighbour_count_, &neighbour_count_old_, &reverse_, &reverse_count_})
       bytes += a->bytes();
-    bytes += touching_.bytes() + incoming_.bytes() + pair_load_.bytes();
+    bytes += incoming_.bytes() + pair_load_.bytes();
     bytes += cell_key_.bytes() + cell_key_sorted_.bytes();
     return bytes / static_cast<std::size_t>(count_);
   }
@@ -540,7 +540,6 @@ class CudaEngine final : public DemEngine {
     neighbour_count_.resize(n);
     neighbour_count_old_.resize(n);
     reverse_count_.resize(n);
-    touching_.resize(step_.history ? 0 : n);
     incoming_.resize(n);
     pair_load_.resize(static_cast<std::size_t>(step_.pair_doubles) * slots);
   }
@@ -579,7 +578,6 @@ class CudaEngine final : public DemEngine {
     a.reverse_count = reverse_count_.data();
     a.max_neighbours = max_neighbours_;
     a.history = history_view(hin, hout);
-    a.touching = step_.history ? hout.neighbour_mask.data() : touching_.data();
     a.incoming = incoming_.data();
     a.pair_load = pair_load_.data();
     return a;
@@ -707,7 +705,6 @@ class CudaEngine final : public DemEngine {
   DeviceArray<double> radius_next_, inv_mass_next_, inv_inertia_next_;  // rebuild scratch
   DeviceArray<std::int32_t> id_, id_next_, neighbours_, partner_id_, partner_id_old_;
   DeviceArray<std::int32_t> neighbour_count_, neighbour_count_old_, reverse_, reverse_count_;
-  DeviceArray<std::uint64_t> touching_;  // scenes without history (else the history mask)
   DeviceArray<std::uint32_t> incoming_;
   DeviceArray<double> pair_load_;
   DeviceArray<std::uint32_t> cell_key_, cell_key_sorted_;

@@ -13,11 +13,39 @@
 namespace pdsim {
 namespace {
 
-// A random cloud sorted by grid cell (the order the engines give the builders).
+// Particles sorted by grid cell (the order the engines give the builders) and the lists built
+// from them. `radius` empty: every particle has `mono_radius`.
 struct Cloud {
   Grid grid;
   std::vector<double> x, y, z, radius;
+  double mono_radius = 0, skin = 0;
   std::vector<std::int32_t> cell_start, cell_end, id;
+  int max = 0;  // slots per list
+  std::vector<std::int32_t> neighbours, count, partner, reverse, reverse_count;
+
+  // Builder arguments over these particles, with empty lists to fill (no history carried).
+  NeighbourBuildArgs args() {
+    const std::size_t n = x.size(), slots = n * static_cast<std::size_t>(max);
+    neighbours.assign(slots, -1), partner.assign(slots, -1), reverse.assign(slots, -1);
+    count.assign(n, 0), reverse_count.assign(n, 0);
+    NeighbourBuildArgs b{};
+    b.count = static_cast<int>(n);
+    b.grid = grid;
+    b.x = x.data(), b.y = y.data(), b.z = z.data();
+    b.radius = radius.empty() ? nullptr : radius.data();
+    b.mono_radius = mono_radius;
+    b.skin = skin;
+    b.cell_start = cell_start.data();
+    b.cell_end = cell_end.data();
+    b.id = id.data();
+    b.max_neighbours = max;
+    b.neighbours = neighbours.data();
+    b.neighbour_count = count.data();
+    b.partner_id = partner.data();
+    b.reverse = reverse.data();
+    b.reverse_count = reverse_count.data();
+    return b;
+  }
 };
 
 Cloud sorted_cloud(int count, double half, double r_max, double skin) {
@@ -33,6 +61,7 @@ Cloud sorted_cloud(int count, double half, double r_max, double skin) {
     r[i] = r_max * (0.5 + 0.5 * uniform());
   }
   Cloud c;
+  c.skin = skin;
   c.grid = grid_around({0, 0, 0}, {half, half, half}, 2 * r_max + skin);
   const int cells = c.grid.nx * c.grid.ny * c.grid.nz;
   std::vector<std::int32_t> order(p.size());
@@ -55,27 +84,14 @@ Cloud sorted_cloud(int count, double half, double r_max, double skin) {
   return c;
 }
 
-TEST_CASE("forward lists hold each close pair once; reverse lists point back at its slot") {
+TEST_CASE("forward lists hold each close pair once, and reverse lists point back at its slot") {
   constexpr int kCount = 400, kMax = 32;
   const double r_max = 0.0025, skin = 0.3 * r_max;
   Cloud c = sorted_cloud(kCount, 0.02, r_max, skin);
-  std::vector<std::int32_t> neighbours(kCount * kMax), count(kCount), partner(kCount * kMax),
-      reverse(kCount * kMax), reverse_count(kCount);
-  NeighbourBuildArgs b{};
-  b.count = kCount;
-  b.grid = c.grid;
-  b.x = c.x.data(), b.y = c.y.data(), b.z = c.z.data();
-  b.radius = c.radius.data();
-  b.skin = skin;
-  b.cell_start = c.cell_start.data();
-  b.cell_end = c.cell_end.data();
-  b.id = c.id.data();
-  b.max_neighbours = kMax;
-  b.neighbours = neighbours.data();
-  b.neighbour_count = count.data();
-  b.partner_id = partner.data();
-  b.reverse = reverse.data();
-  b.reverse_count = reverse_count.data();
+  c.max = kMax;
+  const NeighbourBuildArgs b = c.args();
+  const std::vector<std::int32_t>&neighbours = c.neighbours, &count = c.count, &partner = c.partner,
+        &reverse = c.reverse, &reverse_count = c.reverse_count;
   for (int i = 0; i < kCount; ++i) REQUIRE(build_neighbours_of(i, b));
   for (int i = 0; i < kCount; ++i) REQUIRE(build_reverse_of(i, b));
 
@@ -122,22 +138,15 @@ std::vector<double> carried_history(bool swap, bool live) {
   old_history[0] = h.x, old_history[1] = h.y, old_history[2] = h.z;
   std::vector<std::int32_t> old_index = {0, 1}, id = {ids[0], ids[1]};
   if (swap) old_index = {1, 0}, id = {ids[1], ids[0]};
-  std::vector<double> x = {0.0, 0.0049}, y = {0, 0}, z = {0, 0};
-  std::vector<std::int32_t> cell_start = {0}, cell_end = {2}, neighbours(2 * kMax), count(2),
-                            partner(2 * kMax);
-  NeighbourBuildArgs b{};
-  b.count = 2;
-  b.grid = {{-1, -1, -1}, 2.0, 1, 1, 1};
-  b.x = x.data(), b.y = y.data(), b.z = z.data();
-  b.mono_radius = 0.0025;
-  b.skin = 0.001;
-  b.cell_start = cell_start.data();
-  b.cell_end = cell_end.data();
-  b.id = id.data();
-  b.max_neighbours = kMax;
-  b.neighbours = neighbours.data();
-  b.neighbour_count = count.data();
-  b.partner_id = partner.data();
+  Cloud c;  // two spheres 0.1 mm apart, in one cell
+  c.grid = {{-1, -1, -1}, 2.0, 1, 1, 1};
+  c.x = {0.0, 0.0049}, c.y = {0, 0}, c.z = {0, 0};
+  c.mono_radius = 0.0025;
+  c.skin = 0.001;
+  c.cell_start = {0}, c.cell_end = {2};
+  c.id = id;
+  c.max = kMax;
+  NeighbourBuildArgs b = c.args();
   b.old_index = old_index.data();
   b.old_partner_id = old_partner.data();
   b.old_neighbour_count = old_count.data();
@@ -146,8 +155,8 @@ std::vector<double> carried_history(bool swap, bool live) {
   b.new_mask = new_mask.data();
   b.new_history = new_history.data();
   for (int i = 0; i < 2; ++i) REQUIRE(build_neighbours_of(i, b));
-  REQUIRE(count[0] == 1);
-  REQUIRE(count[1] == 0);
+  REQUIRE(c.count[0] == 1);
+  REQUIRE(c.count[1] == 0);
   CHECK(new_mask[0] == (live ? 1u : 0u));
   CHECK(new_mask[1] == 0u);
   return {new_history[0], new_history[1], new_history[2]};

@@ -226,7 +226,7 @@ TEST_CASE("grazing contacts 1e-9 and 1e-12 of the swing deep are found at their 
   }
 }
 
-TEST_CASE("brief case: ball at the slot centre settles at 3.24 mm; from a wall it is irregular") {
+TEST_CASE("brief case: ball at the slot centre settles at 3.24 mm, from a wall it is irregular") {
   const ImpactDamperParams p = brief_case();
   const double period = 1 / p.frequency;
   const double dt = period / 64;

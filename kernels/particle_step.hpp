@@ -416,7 +416,7 @@ PDSIM_HD std::uint64_t touching_slots(int i, Vec3 x, double radius, const Partic
   return touching;
 }
 
-// The two passes take the step arguments twice: `a` for the hot path and `shared`, the same
+// The pair pass takes the step arguments twice: `a` for the hot path and `shared`, the same
 // values, for the out-of-line contact paths. A copy of `a` private to the loop then never
 // escapes, so the compiler keeps its fields in registers instead of reloading them after
 // every store (on CUDA both are the kernel's argument).
@@ -433,48 +433,59 @@ PDSIM_HOT void pair_pass(int i, const ParticleStepArgs& a, const ParticleStepArg
   if (touching) pair_contacts<V>(i, touching, shared, sum);
 }
 
-// Particle pass of particle i: its pair loads and wall contacts, then the integration. The
-// common case (no contact, away from the walls) stays in this short path. Wall contacts add
-// to `cold`, the integration to `sum` (two sums, so that the hot one stays in registers too).
+// Bounding test of particle i against the container walls (a centre outside the container
+// passes too, for the guard).
 template <class V>
-PDSIM_HOT void particle_pass(int i, const ParticleStepArgs& a, const ParticleStepArgs& shared,
-                             ParticleContribution& sum, ParticleContribution& cold) {
+PDSIM_HOT bool near_wall(int i, const ParticleStepArgs& a) {
+  const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
+  Vec3 offset, local;
+  container_offset<V>({a.in.x[i], a.in.y[i], a.in.z[i]}, a, offset, local);
+  const Vec3 inner = a.geometry.half_size - Vec3{radius, radius, radius};
+  bool near = fabs(local.z) > inner.z;
+  if constexpr (V::kShape == WallShape::box) {
+    near |= (fabs(local.x) > inner.x) | (fabs(local.y) > inner.y);
+  } else {
+    const double inside = a.geometry.radius - radius;
+    near |= local.x * local.x + local.y * local.y > inside * inside;
+  }
+  return near;
+}
+
+// Whether particle i has loads to gather: pairs in contact, or walls near. Most particles have
+// none, so this test and the integration below are all they cost.
+template <class V>
+PDSIM_HOT bool has_loads(int i, const ParticleStepArgs& a) {
+  return near_wall<V>(i, a) | (a.history.neighbour_mask_out[i] != 0) | (a.incoming[i] != 0);
+}
+
+// Loads of particle i that passed has_loads(): its pairs' (in a fixed order) and the walls'.
+// Wall contacts add their reactions to `sum`.
+template <class V>
+PDSIM_COLD Load contact_loads(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
+  Load load;
+  if (a.history.neighbour_mask_out[i] | a.incoming[i]) load = pair_loads<V>(i, a);
+  if (near_wall<V>(i, a)) {
+    const Load walls = wall_contacts<V>(i, a, sum);
+    load.force += walls.force;
+    load.torque += walls.torque;
+  }
+  return load;
+}
+
+// Semi-implicit Euler (symplectic) of particle i under `load`; adds its kinetic energy and
+// takes the largest squared speed.
+template <class V>
+PDSIM_HOT void integrate(int i, const ParticleStepArgs& a, const Load& load, double& kinetic,
+                         double& speed_sq_max) {
   const Body b = body<V>(i, a);
   const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
-  Vec3 force, torque;
-  if (a.history.neighbour_mask_out[i] | a.incoming[i]) {
-    const Load l = pair_loads<V>(i, shared);
-    force = l.force;
-    torque = l.torque;
-  }
-
-  // Bounding test against the container (a centre outside it passes too, for the guard).
-  Vec3 offset, local;
-  container_offset<V>(x, a, offset, local);
-  const Vec3 inner = a.geometry.half_size - Vec3{b.radius, b.radius, b.radius};
-  bool near_wall = fabs(local.z) > inner.z;
-  if constexpr (V::kShape == WallShape::box) {
-    near_wall |= (fabs(local.x) > inner.x) | (fabs(local.y) > inner.y);
-  } else {
-    const double inside = a.geometry.radius - b.radius;
-    near_wall |= local.x * local.x + local.y * local.y > inside * inside;
-  }
-  if (near_wall) {
-    const Load l = wall_contacts<V>(i, shared, cold);
-    force += l.force;
-    torque += l.torque;
-  } else if constexpr (V::Tangential::kHistory) {
-    a.history.wall_mask_out[i] = 0;
-  }
-
-  // Semi-implicit Euler (symplectic), fused into the gather.
   const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
   const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
-  Vec3 accel = b.inv_mass * force;
+  Vec3 accel = b.inv_mass * load.force;
   if constexpr (V::kGravity) accel += a.gravity;
   const Vec3 v_new = v + a.dt * accel;
   const Vec3 x_new = x + a.dt * v_new;
-  const Vec3 w_new = w + (a.dt * b.inv_inertia) * torque;
+  const Vec3 w_new = w + (a.dt * b.inv_inertia) * load.torque;
   a.out.x[i] = x_new.x;
   a.out.y[i] = x_new.y;
   a.out.z[i] = x_new.z;
@@ -484,10 +495,17 @@ PDSIM_HOT void particle_pass(int i, const ParticleStepArgs& a, const ParticleSte
   a.out.wx[i] = w_new.x;
   a.out.wy[i] = w_new.y;
   a.out.wz[i] = w_new.z;
-
   const double speed_sq = dot(v_new, v_new);
-  sum.kinetic += 0.5 * (b.mass * speed_sq + b.inertia * dot(w_new, w_new));
-  sum.speed_sq = max_of(sum.speed_sq, speed_sq);
+  kinetic += 0.5 * (b.mass * speed_sq + b.inertia * dot(w_new, w_new));
+  speed_sq_max = max_of(speed_sq_max, speed_sq);
+}
+
+// Particle pass of particle i (one CUDA thread): its loads, then the integration.
+template <class V>
+PDSIM_HD void particle_pass(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
+  if constexpr (V::Tangential::kHistory) a.history.wall_mask_out[i] = 0;
+  integrate<V>(i, a, has_loads<V>(i, a) ? contact_loads<V>(i, a, sum) : Load{}, sum.kinetic,
+               sum.speed_sq);
 }
 
 }  // namespace pdsim

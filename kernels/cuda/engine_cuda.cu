@@ -162,7 +162,7 @@ __global__ void __launch_bounds__(kBlock)
   const int t = static_cast<int>(threadIdx.x);
   const int i = static_cast<int>(blockIdx.x) * kBlock + t;
   ParticleContribution c;
-  if (i < args.count) particle_pass<V>(i, args, args, c, c);
+  if (i < args.count) particle_pass<V>(i, args, c);
   new (part + t) ParticleContribution(c);
   reduce_block(part, t);
   if (t == 0) accumulate(block_totals[blockIdx.x], part[0]);

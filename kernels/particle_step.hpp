@@ -240,7 +240,9 @@ PDSIM_COLD void pair_contacts(int i, std::uint64_t touching, const ParticleStepA
     if constexpr (V::Tangential::kHistory) {
       if (mask_in >> k & 1u) xi = load3(a.history.neighbour_in, base + k);
     }
-    const auto out = contact<V>(reach - dist, normal, vrel, w - wj, b.radius, radius_j,
+    // The slot test and this distance may round differently (FMA contraction): an overlap
+    // of a few ulp below zero is zero, not a NaN in the Hertz root.
+    const auto out = contact<V>(max_of(reach - dist, 0.0), normal, vrel, w - wj, b.radius, radius_j,
                                 b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
                                 sum.dissipated_normal, sum.dissipated_tangential);
     if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, base + k, xi);

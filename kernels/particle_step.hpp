@@ -453,20 +453,24 @@ PDSIM_HOT bool near_wall(int i, const ParticleStepArgs& a) {
   return near;
 }
 
-// Whether particle i has loads to gather: pairs in contact, or walls near. Most particles have
-// none, so this test and the integration below are all they cost.
+// Which loads particle i has to gather: bit kPairLoads for pairs in contact, kWallLoads for
+// walls near. Most particles have none, so this test and the integration below are all they
+// cost.
+constexpr int kPairLoads = 1, kWallLoads = 2;
 template <class V>
-PDSIM_HOT bool has_loads(int i, const ParticleStepArgs& a) {
-  return near_wall<V>(i, a) | (a.history.neighbour_mask_out[i] != 0) | (a.incoming[i] != 0);
+PDSIM_HOT int load_kinds(int i, const ParticleStepArgs& a) {
+  const bool pairs = (a.history.neighbour_mask_out[i] != 0) | (a.incoming[i] != 0);
+  return (pairs ? kPairLoads : 0) | (near_wall<V>(i, a) ? kWallLoads : 0);
 }
 
-// Loads of particle i that passed has_loads(): its pairs' (in a fixed order) and the walls'.
-// Wall contacts add their reactions to `sum`.
+// Loads of particle i of the given kinds (not 0): its pairs' (in a fixed order) and the
+// walls'. Wall contacts add their reactions to `sum`.
 template <class V>
-PDSIM_COLD Load contact_loads(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
+PDSIM_COLD Load contact_loads(int i, int kinds, const ParticleStepArgs& a,
+                              ParticleContribution& sum) {
   Load load;
-  if (a.history.neighbour_mask_out[i] | a.incoming[i]) load = pair_loads<V>(i, a);
-  if (near_wall<V>(i, a)) {
+  if (kinds & kPairLoads) load = pair_loads<V>(i, a);
+  if (kinds & kWallLoads) {
     const Load walls = wall_contacts<V>(i, a, sum);
     load.force += walls.force;
     load.torque += walls.torque;
@@ -506,7 +510,8 @@ PDSIM_HOT void integrate(int i, const ParticleStepArgs& a, const Load& load, dou
 template <class V>
 PDSIM_HD void particle_pass(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
   if constexpr (V::Tangential::kHistory) a.history.wall_mask_out[i] = 0;
-  integrate<V>(i, a, has_loads<V>(i, a) ? contact_loads<V>(i, a, sum) : Load{}, sum.kinetic,
+  const int kinds = load_kinds<V>(i, a);
+  integrate<V>(i, a, kinds ? contact_loads<V>(i, kinds, a, sum) : Load{}, sum.kinetic,
                sum.speed_sq);
 }
 

@@ -52,17 +52,17 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, Ste
   const ParticleStepArgs a = shared;  // private: its pointers stay in registers
   const int n = end - begin;
   alignas(64) double load[6][kBlock];
-  alignas(64) std::uint8_t busy[kBlock];
+  alignas(64) std::uint8_t kinds[kBlock];
   if constexpr (V::Tangential::kHistory) std::fill_n(a.history.wall_mask_out + begin, n, 0);
 #pragma omp simd
   for (int k = 0; k < n; ++k) {
-    busy[k] = has_loads<V>(begin + k, a);
+    kinds[k] = static_cast<std::uint8_t>(load_kinds<V>(begin + k, a));
     for (auto& component : load) component[k] = 0;
   }
   StepTotals walls;
   for (int k = 0; k < n; ++k) {
-    if (!busy[k]) continue;
-    const Load l = contact_loads<V>(begin + k, shared, walls);
+    if (!kinds[k]) continue;
+    const Load l = contact_loads<V>(begin + k, kinds[k], shared, walls);
     load[0][k] = l.force.x, load[1][k] = l.force.y, load[2][k] = l.force.z;
     load[3][k] = l.torque.x, load[4][k] = l.torque.y, load[5][k] = l.torque.z;
   }

@@ -59,10 +59,10 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, Ste
     kinds[k] = static_cast<std::uint8_t>(load_kinds<V>(begin + k, a));
     for (auto& component : load) component[k] = 0;
   }
-  StepTotals walls;
+  StepTotals sum;  // wall reactions and dissipation, then the integration's sums
   for (int k = 0; k < n; ++k) {
     if (!kinds[k]) continue;
-    const Load l = contact_loads<V>(begin + k, kinds[k], shared, walls);
+    const Load l = contact_loads<V>(begin + k, kinds[k], shared, sum);
     load[0][k] = l.force.x, load[1][k] = l.force.y, load[2][k] = l.force.z;
     load[3][k] = l.torque.x, load[4][k] = l.torque.y, load[5][k] = l.torque.z;
   }
@@ -72,9 +72,9 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, Ste
     integrate<V>(begin + k, a,
                  {{load[0][k], load[1][k], load[2][k]}, {load[3][k], load[4][k], load[5][k]}},
                  kinetic, speed_sq);
-  walls.kinetic += kinetic;
-  walls.speed_sq = max_of(walls.speed_sq, speed_sq);
-  accumulate(total, walls);
+  sum.kinetic += kinetic;
+  sum.speed_sq = max_of(sum.speed_sq, speed_sq);
+  accumulate(total, sum);
 }
 
 template <class V>

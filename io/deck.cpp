@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <initializer_list>
 #include <limits>
 #include <sstream>
@@ -651,7 +652,156 @@ OutputSpec read_output(const Table& t) {
   return o;
 }
 
+// ---- Parameter sweeps ----
+
+constexpr int kMaxSweepPoints = 10'000;
+
+// One part of a sweep key: a table's name, with an index when it names one of [[name]] tables.
+struct KeyPart {
+  std::string name;
+  std::optional<std::size_t> index;
+};
+
+std::optional<std::vector<KeyPart>> split_key(const std::string& key) {
+  std::vector<KeyPart> parts;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t dot = key.find('.', start);
+    std::string part = key.substr(start, dot == std::string::npos ? dot : dot - start);
+    KeyPart p;
+    if (const std::size_t open = part.find('['); open != std::string::npos) {
+      const std::string digits = part.substr(open + 1, part.size() - open - 2);
+      if (part.back() != ']' || digits.empty() || digits.size() > 6 ||
+          digits.find_first_not_of("0123456789") != std::string::npos)
+        return std::nullopt;
+      p.index = std::stoul(digits);
+      part.erase(open);
+    }
+    if (part.empty() || part.find_first_of("[] \"") != std::string::npos) return std::nullopt;
+    p.name = part;
+    parts.push_back(p);
+    if (dot == std::string::npos) return parts;
+    start = dot + 1;
+  }
+}
+
+std::string sweep_name(const std::string& key) {
+  return "sweep.\"" + key + "\"";
+}
+
+// A node as TOML writes it (values of a sweep, for names and tables).
+std::string written(const toml::node& node) {
+  std::ostringstream s;
+  node.visit([&](const auto& n) { s << n; });
+  return s.str();
+}
+
+SweepSpec read_sweep(const toml::table& table, const std::string& path) {
+  // Deck order, not the table's (alphabetical) order.
+  std::vector<std::pair<const toml::key*, const toml::node*>> entries;
+  for (auto&& [k, node] : table) entries.emplace_back(&k, &node);
+  std::sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) {
+    const auto& p = a.first->source().begin;
+    const auto& q = b.first->source().begin;
+    return p.line != q.line ? p.line < q.line : p.column < q.column;
+  });
+  SweepSpec sweep;
+  double points = 1;
+  for (const auto& [k, node] : entries) {
+    const std::string key(k->str());
+    const SourcePos pos = to_pos(path, k->source());
+    const auto parts = split_key(key);
+    if (!parts)
+      throw InputError(pos, sweep_name(key),
+                       "expected a deck key such as \"damper.particles.count\" or "
+                       "\"damper[1].container.size\"");
+    if (parts->front().name == "sweep" || parts->size() < 2)
+      throw InputError(pos, sweep_name(key),
+                       "expected a key inside a deck table, such as \"excitation.amplitude\"");
+    for (const std::string& other : sweep.keys)
+      for (const auto& [a, b] : {std::pair{key, other}, std::pair{other, key}})
+        if (b.size() > a.size() && b.compare(0, a.size(), a) == 0 &&
+            (b[a.size()] == '.' || b[a.size()] == '['))
+          throw InputError(pos, sweep_name(key),
+                           "overlaps the sweep key \"" + other + "\"; sweep one or the other");
+    const toml::array* values = node->as_array();
+    if (!values || values->empty())
+      throw InputError(to_pos(path, node->source()), sweep_name(key),
+                       "expected an array of the values to sweep, e.g. [150, 200, 250], got " +
+                           (values ? std::string("[]") : describe(*node)));
+    sweep.keys.push_back(key);
+    sweep.values.emplace_back();
+    for (const toml::node& value : *values) sweep.values.back().push_back(written(value));
+    points *= static_cast<double>(values->size());
+    if (points > kMaxSweepPoints)
+      throw InputError(pos, sweep_name(key),
+                       "the sweep has more than " + std::to_string(kMaxSweepPoints) + " points");
+  }
+  return sweep;
+}
+
+// Puts value(key) at the place a sweep key names, below `table`: every [[name]] table when the
+// key gives no index. Missing tables are created; the value's node keeps its position in the
+// deck's [sweep] table, so that errors about it point there.
+using MakeValue = std::function<void(toml::table&, const KeyPart&)>;
+void assign(toml::table& table, const std::vector<KeyPart>& parts, std::size_t depth,
+            const toml::key& sweep_key, const std::string& path, const MakeValue& put) {
+  const KeyPart& part = parts[depth];
+  std::string name;
+  for (std::size_t i = 0; i <= depth; ++i) name += (i ? "." : "") + parts[i].name;
+  auto fail = [&](const std::string& what) {
+    throw InputError(to_pos(path, sweep_key.source()), sweep_name(std::string(sweep_key.str())),
+                     "'" + name + "' " + what);
+  };
+  const bool last = depth + 1 == parts.size();
+  if (last && !part.index) return put(table, part);
+  if (last) fail("is a table of the deck; name a key inside it");
+  toml::node* node = table.get(part.name);
+  if (!node) {
+    if (part.index) fail("does not exist: the deck has no [[" + part.name + "]] tables");
+    node = &table.insert(toml::key(part.name, sweep_key.source()), toml::table{}).first->second;
+  }
+  if (toml::array* array = node->as_array(); array && array->is_array_of_tables()) {
+    if (part.index && *part.index >= array->size())
+      fail("does not exist: the deck has " + std::to_string(array->size()) + " [[" + part.name +
+           "]] tables, numbered from 0");
+    for (std::size_t i = 0; i < array->size(); ++i)
+      if (!part.index || *part.index == i)
+        assign(*(*array)[i].as_table(), parts, depth + 1, sweep_key, path, put);
+    return;
+  }
+  if (part.index) fail("is not an array of [[" + part.name + "]] tables");
+  toml::table* sub = node->as_table();
+  if (!sub) fail("is a value, not a table");
+  assign(*sub, parts, depth + 1, sweep_key, path, put);
+}
+
 }  // namespace
+
+int SweepSpec::points() const {
+  if (keys.empty()) return 0;
+  int n = 1;
+  for (const auto& v : values) n *= static_cast<int>(v.size());
+  return n;
+}
+
+std::vector<std::size_t> SweepSpec::choice(int point) const {
+  std::vector<std::size_t> index(keys.size());
+  std::size_t rest = static_cast<std::size_t>(point - 1);
+  for (std::size_t k = keys.size(); k-- > 0;) {
+    index[k] = rest % values[k].size();
+    rest /= values[k].size();
+  }
+  return index;
+}
+
+std::string SweepSpec::describe(int point) const {
+  const auto index = choice(point);
+  std::string text;
+  for (std::size_t k = 0; k < keys.size(); ++k)
+    text += (k ? ", " : "") + keys[k] + " = " + values[k][index[k]];
+  return text;
+}
 
 SourcePos Deck::where(const std::string& key) const {
   std::string name = key;
@@ -664,13 +814,17 @@ SourcePos Deck::where(const std::string& key) const {
   return SourcePos{path, 0, 0};
 }
 
-Deck parse_deck(const std::string& text, const std::string& path) {
-  toml::table root;
+namespace {
+
+toml::table parse_root(const std::string& text, const std::string& path) {
   try {
-    root = toml::parse(std::string_view(text), std::string_view(path));
+    return toml::parse(std::string_view(text), std::string_view(path));
   } catch (const toml::parse_error& error) {
     throw InputError(to_pos(path, error.source()), "", std::string(error.description()));
   }
+}
+
+Deck read_deck(const toml::table& root, const std::string& text, const std::string& path) {
   Deck deck;
   deck.path = path;
   deck.text = text;
@@ -678,7 +832,7 @@ Deck parse_deck(const std::string& text, const std::string& path) {
 
   const Table top(root, "", SourcePos{path, 0, 0});
   top.allow_only({"title", "structure", "damper", "contact", "gravity", "excitation", "coupling",
-                  "solver", "output"});
+                  "solver", "output", "sweep"});
   deck.title = top.text("title").value_or("");
   const std::string table = "a table";
 
@@ -725,7 +879,55 @@ Deck parse_deck(const std::string& text, const std::string& path) {
   if (const auto coupling = top.sub("coupling", table)) deck.coupling = read_coupling(*coupling);
   if (const auto solver = top.sub("solver", table)) deck.solver = read_solver(*solver);
   if (const auto output = top.sub("output", table)) deck.output = read_output(*output);
+  if (const toml::node* sweep = root.get("sweep")) {
+    if (!sweep->as_table()) top.wrong(*sweep, "sweep", table);
+    deck.sweep = read_sweep(*sweep->as_table(), path);
+  }
   return deck;
+}
+
+}  // namespace
+
+Deck parse_deck(const std::string& text, const std::string& path) {
+  return read_deck(parse_root(text, path), text, path);
+}
+
+Deck sweep_point(const Deck& deck, int point) {
+  const int points = deck.sweep.points();
+  if (points == 0) throw InputError(deck.path + ": the deck has no [sweep] table, so no points");
+  if (point < 1 || point > points)
+    throw InputError(deck.path + ": sweep point " + std::to_string(point) +
+                     " does not exist; the [sweep] table has points 1 to " +
+                     std::to_string(points));
+  toml::table root = parse_root(deck.text, deck.path);
+  const toml::table& sweep = *root.get("sweep")->as_table();
+  const auto index = deck.sweep.choice(point);
+  for (std::size_t k = 0; k < deck.sweep.keys.size(); ++k) {
+    const std::string& key = deck.sweep.keys[k];
+    const toml::key& written_key = sweep.find(key)->first;
+    // Each place gets the value's node moved out of a fresh parse: a move keeps the node's
+    // position in the file (a copy would not), and a key may name several places.
+    auto put = [&](toml::table& table, const KeyPart& part) {
+      toml::table fresh = parse_root(deck.text, deck.path);
+      toml::node& value = (*fresh.get("sweep")->as_table()->get(key)->as_array())[index[k]];
+      table.erase(part.name);
+      value.visit(
+          [&](auto& v) { table.insert(toml::key(part.name, written_key.source()), std::move(v)); });
+    };
+    assign(root, *split_key(key), 0, written_key, deck.path, put);
+  }
+  root.erase("sweep");
+  const std::string label = "sweep point " + std::to_string(point) + " of " +
+                            std::to_string(points) + ": " + deck.sweep.describe(point);
+  try {
+    // The point's values join the deck text, its provenance in the output.
+    Deck d = read_deck(root, deck.text + "\n# " + label + "\n", deck.path);
+    d.sweep = deck.sweep;
+    d.point = point;
+    return d;
+  } catch (const InputError& e) {
+    throw InputError(std::string(e.what()) + " (" + label + ")");
+  }
 }
 
 Deck load_deck(const std::string& path) {

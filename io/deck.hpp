@@ -138,6 +138,18 @@ struct OutputSpec {
   bool energy = false;  // write /energy
 };
 
+// A parameter sweep, the [sweep] table: each key names a deck value by its dotted name
+// ("damper.particles.count"; "damper[1].container.size" for one damper, "damper.x" for every
+// one) and lists the values it takes. The points are every combination, numbered from 1 with
+// the last key varying fastest; each is the deck with those values (sweep_point below).
+struct SweepSpec {
+  std::vector<std::string> keys;                     // in deck order
+  std::vector<std::vector<std::string>> values;      // each value as TOML writes it
+  int points() const;                                // 0 when there is no sweep
+  std::vector<std::size_t> choice(int point) const;  // index of each key's value
+  std::string describe(int point) const;             // "damper.particles.count = 200, ..."
+};
+
 struct Deck {
   std::string path;  // as given on the command line
   std::string text;  // the whole deck, stored as provenance
@@ -150,6 +162,8 @@ struct Deck {
   CouplingSpec coupling;
   SolverSpec solver;
   OutputSpec output;
+  SweepSpec sweep;
+  int point = 0;  // the sweep point this deck is (1-based), 0 for the deck itself
   // Where each key given in the deck stands, by dotted name ("damper[0].particles.count").
   std::map<std::string, SourcePos> positions;
 
@@ -160,5 +174,9 @@ struct Deck {
 // Parses and validates a deck; throws InputError naming file:line:column, key and expectation.
 Deck load_deck(const std::string& path);
 Deck parse_deck(const std::string& text, const std::string& path);
+
+// Sweep point `point` (1 to deck.sweep.points()) of a deck: the deck with that point's values,
+// validated. An error names the [sweep] entry that set the value, and the point.
+Deck sweep_point(const Deck& deck, int point);
 
 }  // namespace pdsim

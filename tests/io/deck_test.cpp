@@ -208,7 +208,9 @@ TEST_CASE("the example decks parse with the values they document") {
   CHECK(saeki.excitation.frequencies.back() == 17.0);
   CHECK(saeki.contact.young == 2.0e9);
   CHECK(saeki.output.file == "saeki_250.h5");
-  CHECK(load_deck(kExamples + "saeki_200.toml").dampers.at(0).particles.count == 200);
+  const Deck figure = load_deck(kExamples + "saeki_fig5b_sweep.toml");
+  CHECK(figure.sweep.points() == 2);
+  CHECK(sweep_point(figure, 1).dampers.at(0).particles.count == 200);
 
   const Deck bare = load_deck(kExamples + "bare_sdof.toml");
   CHECK(bare.dampers.empty());
@@ -489,6 +491,81 @@ TEST_CASE("a TOML syntax error keeps toml++'s line and column") {
   CHECK(message.rfind(path + ":4:8: ", 0) == 0);
   CHECK(load_error(kDecks + "no_such_deck.toml") ==
         kDecks + "no_such_deck.toml: cannot open the deck file");
+}
+
+// Two dampers and a [sweep] of two keys; the sweep starts on line 10.
+const std::string kSweepDeck =
+    kSdof + kSine +  // lines 1-9
+    "[sweep]\n"
+    "\"damper.particles.count\" = [3, 4]\n"
+    "\"excitation.amplitude\" = [1.0, 2.0, 3.0]\n" +
+    kContact +
+    "[[damper]]\ncontainer = { shape = \"box\", size = [0.05, 0.05, 0.05] }\n"
+    "particles = { count = 2, diameter = 0.005, density = 7800.0 }\n"
+    "[[damper]]\ncontainer = { shape = \"box\", size = [0.05, 0.05, 0.05] }\n"
+    "particles = { count = 2, diameter = 0.005, density = 7800.0 }\n";
+
+TEST_CASE("a sweep is every combination of its values, the last key fastest") {
+  const Deck deck = parse_deck(kSweepDeck, "deck.toml");
+  REQUIRE(deck.sweep.points() == 6);
+  CHECK(deck.sweep.keys ==
+        std::vector<std::string>{"damper.particles.count", "excitation.amplitude"});
+  CHECK(deck.sweep.describe(1) == "damper.particles.count = 3, excitation.amplitude = 1.0");
+  CHECK(deck.sweep.describe(5) == "damper.particles.count = 4, excitation.amplitude = 2.0");
+  for (int k = 1; k <= 6; ++k) {
+    CAPTURE(k);
+    const Deck point = sweep_point(deck, k);
+    CHECK(point.point == k);
+    // "damper" without an index sets every damper.
+    CHECK(point.dampers.at(0).particles.count == (k <= 3 ? 3 : 4));
+    CHECK(point.dampers.at(1).particles.count == (k <= 3 ? 3 : 4));
+    CHECK(point.excitation.amplitude == 1.0 + (k - 1) % 3);
+    CHECK(point.structure.mass == 2.0);  // untouched
+    CHECK(point.text.find("# sweep point " + std::to_string(k) + " of 6: ") != std::string::npos);
+  }
+  std::string one = kSweepDeck;
+  one.replace(one.find("\"damper.particles"), 8, "\"damper[1].");
+  const Deck second_only = sweep_point(parse_deck(one, "deck.toml"), 4);
+  CHECK(second_only.dampers.at(0).particles.count == 2);
+  CHECK(second_only.dampers.at(1).particles.count == 4);
+}
+
+TEST_CASE("a bad sweep value or key is refused at its place in the [sweep] table") {
+  auto point_error = [](const std::string& sweep_lines, int point) {
+    const std::string text = kSdof + kSine + "[sweep]\n" + sweep_lines + "\n";  // sweep: line 11
+    try {
+      sweep_point(parse_deck(text, "deck.toml"), point);
+    } catch (const InputError& error) {
+      return std::string(error.what());
+    }
+    return std::string("(no error)");
+  };
+  // The value's own position: line 11, column 26 is the -2.0.
+  std::string e = point_error("\"structure.mass\" = [1.0, -2.0]", 2);
+  CHECK(e.rfind("deck.toml:11:26: 'structure.mass': expected a positive number", 0) == 0);
+  CHECK(e.find("(sweep point 2 of 2: structure.mass = -2.0)") != std::string::npos);
+  CHECK(point_error("\"structure.mass\" = [1.0, -2.0]", 1) == "(no error)");
+  // A misspelt key is an unknown key at the sweep entry, with the suggestion.
+  e = point_error("\"structure.mas\" = [1.0]", 1);
+  CHECK(e.rfind("deck.toml:11:1: 'structure.mas': unknown key", 0) == 0);
+  CHECK(e.find("did you mean 'mass'?") != std::string::npos);
+  e = point_error("\"damper[0].particles.count\" = [5]", 1);
+  CHECK(e.rfind("deck.toml:11:1: 'sweep.\"damper[0].particles.count\"': 'damper' does not exist",
+                0) == 0);
+  check_error(kSdof + kSine + "[sweep]\n\"structure.mass\" = 3.0\n",
+              "11:20: 'sweep.\"structure.mass\"'", "expected an array of the values to sweep");
+  check_error(kSdof + kSine + "[sweep]\n\"structure\" = [1]\n", "11:1: 'sweep.\"structure\"'",
+              "expected a key inside a deck table");
+  check_error(
+      kSdof + kSine + "[sweep]\n\"damper.particles.count\" = [1]\n\"damper.particles\" = [{}]\n",
+      "12:1:", "overlaps the sweep key");
+  const Deck deck = parse_deck(kSdof + kSine + "[sweep]\n\"structure.mass\" = [1.0, 2.0]\n", "d");
+  try {
+    sweep_point(deck, 3);
+    FAIL("point 3 of 2 accepted");
+  } catch (const InputError& error) {
+    CHECK(std::string(error.what()).find("points 1 to 2") != std::string::npos);
+  }
 }
 
 }  // namespace

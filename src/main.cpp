@@ -1,4 +1,4 @@
-// pdsim command line: run, check, modes, bench. User errors exit 1 with the message;
+// pdsim command line: run, sweep, check, modes, bench. User errors exit 1 with the message;
 // simulation failures exit 2; an interrupted run exits 130.
 #include <CLI/CLI.hpp>
 #include <cstdio>
@@ -7,6 +7,7 @@
 #include "pdsim_version.hpp"
 #include "src/bench.hpp"
 #include "src/run.hpp"
+#include "src/sweep.hpp"
 #include "structure/structure.hpp"
 
 namespace {
@@ -40,6 +41,26 @@ int main(int argc, char** argv) {
   run->add_option("--stop-after", options.stop_after,
                   "stop after N frequencies, keeping the checkpoint for --resume")
       ->check(CLI::PositiveNumber);
+  int point = 0;
+  run->add_option("--point", point, "run one point of the deck's [sweep] table (1 to N)")
+      ->check(CLI::PositiveNumber);
+
+  pdsim::SweepOptions sweep_options;
+  auto* sweep = app.add_subcommand(
+      "sweep", "run every point of the deck's [sweep] table, several at once, and tabulate them");
+  sweep->add_option("deck", deck_path, "input deck (TOML) with a [sweep] table")->required();
+  sweep->add_option("-o,--output", sweep_options.folder,
+                    "folder for the points' files (default: the deck's output name + _sweep)");
+  sweep->add_option("--jobs", sweep_options.jobs, "points run at once (default: one per core)")
+      ->check(CLI::PositiveNumber);
+  sweep
+      ->add_option("--threads", sweep_options.threads,
+                   "CPU threads per point (default: the cores shared among the jobs)")
+      ->check(CLI::PositiveNumber);
+  sweep->add_option("--backend", backend, "cpu, cuda or auto (default: the deck's)");
+  sweep->add_flag("--resume", sweep_options.resume,
+                  "keep finished points and continue interrupted ones");
+  sweep->add_flag("--force", sweep_options.force, "rerun every point, overwriting its file");
 
   auto* check = app.add_subcommand("check", "validate a deck and print derived quantities");
   check->add_option("deck", deck_path, "input deck (TOML)")->required();
@@ -56,7 +77,12 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     if (*bench) return pdsim::run_bench(bench_options);
-    const pdsim::Deck deck = pdsim::load_deck(deck_path);
+    pdsim::Deck deck = pdsim::load_deck(deck_path);
+    if (*sweep) {
+      sweep_options.backend = parse_backend(backend);
+      return pdsim::run_sweep(deck, sweep_options);
+    }
+    if (point > 0) deck = pdsim::sweep_point(deck, point);
     if (*modes) {
       if (deck.structure.kind == pdsim::StructureKind::none)
         throw pdsim::InputError(deck.path + ": the deck has no [structure]");
@@ -68,7 +94,10 @@ int main(int argc, char** argv) {
     options.backend = parse_backend(backend);
     const pdsim::Scene scene = pdsim::build_scene(deck, options.threads, options.backend);
     if (*check) {
-      std::cout << pdsim::check_report(deck, scene) << "deck OK\n";
+      std::cout << pdsim::check_report(deck, scene);
+      if (deck.sweep.points() > 0 && deck.point == 0)
+        std::cout << pdsim::check_sweep(deck, options.threads, options.backend);
+      std::cout << "deck OK\n";
       return 0;
     }
     const pdsim::RunReport report = pdsim::run_deck(deck, options);

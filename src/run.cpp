@@ -11,6 +11,7 @@
 
 #include "pdsim_version.hpp"
 #include "src/harmonics.hpp"
+#include "src/sweep.hpp"
 
 namespace pdsim {
 namespace {
@@ -223,6 +224,8 @@ class Runner {
     auto& n = results_.meta_numbers;
     t["deck"] = deck_.text;
     t["deck_path"] = deck_.path;
+    if (deck_.point > 0)
+      t["sweep_point"] = std::to_string(deck_.point) + ": " + deck_.sweep.describe(deck_.point);
     t["title"] = deck_.title;
     t["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
     const auto& engines = system_.engines();
@@ -280,6 +283,8 @@ std::string summary_line(const Results& r, const std::string& path) {
 
 std::string output_path(const Deck& deck, const RunOptions& options) {
   if (!options.output.empty()) return options.output;
+  if (deck.point > 0)
+    return (std::filesystem::path(sweep_folder(deck)) / point_file(deck, deck.point)).string();
   if (!deck.output.file.empty()) return deck.output.file;
   return std::filesystem::path(deck.path).stem().string() + ".h5";
 }
@@ -295,7 +300,13 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   namespace fs = std::filesystem;
   if (fs::exists(path) && !options.force)
     throw InputError(path + ": output file exists; use --force to overwrite it");
+  if (deck.sweep.points() > 0 && deck.point == 0)
+    throw InputError(deck.path + ": the deck has a [sweep] table of " +
+                     std::to_string(deck.sweep.points()) +
+                     " points; run them all with `pdsim sweep`, or one with `pdsim run --point K`");
   const Scene scene = build_scene(deck, options.threads, options.backend);
+  if (const fs::path folder = fs::path(path).parent_path(); deck.point > 0 && !folder.empty())
+    fs::create_directories(folder);
   Runner runner(deck, scene, options.quiet);
   if (options.resume) {
     if (!fs::exists(partial))

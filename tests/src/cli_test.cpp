@@ -5,11 +5,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "io/results.hpp"
 
@@ -121,4 +123,51 @@ TEST_CASE("check passes on every example deck") {
     CHECK(log.find("deck OK") != std::string::npos);
   }
   CHECK(box.files() == 0);
+}
+
+TEST_CASE("a sweep runs every point side by side and tabulates the analytical SDOF response") {
+  Sandbox box;
+  // A bare SDOF driven at 15 Hz with 1 N: X = F / sqrt((K - M w^2)^2 + (c w)^2), c = 2 zeta
+  // sqrt(K M), for each swept mass.
+  const fs::path path = box.dir / "masses.toml";
+  std::ofstream(path)
+      << "[structure]\nkind = \"sdof\"\nmass = 1.0\nstiffness = 10000.0\n"
+         "damping_ratio = 0.2\n[excitation]\nkind = \"stepped_sine\"\n"
+         "amplitude = 1.0\nfrequencies = [15.0]\n"
+         "settle = { min_periods = 10, max_periods = 400, tolerance = 1e-5 }\n"
+         "[output]\nfile = \"m.h5\"\n[sweep]\n\"structure.mass\" = [0.5, 1.0, 2.0]\n";
+  std::string log;
+  REQUIRE(box.pdsim("sweep --jobs 2 masses.toml", &log) == 0);
+  CHECK(log.find("3 of 3 points finished") != std::string::npos);
+  std::ifstream summary(box.dir / "m_sweep" / "summary.csv");
+  std::string line;
+  std::getline(summary, line);
+  CHECK(line.rfind("point,structure.mass,status,file,", 0) == 0);
+  const double masses[] = {0.5, 1.0, 2.0}, w = 2 * M_PI * 15, k = 10000;
+  for (double m : masses) {
+    CAPTURE(m);
+    REQUIRE(std::getline(summary, line));
+    std::vector<std::string> cells;
+    std::stringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
+    REQUIRE(cells.size() == 9);
+    CHECK(std::stod(cells[1]) == m);
+    CHECK(cells[2] == "finished");
+    CHECK(fs::exists(box.dir / "m_sweep" / cells[3]));
+    const double c = 2 * 0.2 * std::sqrt(k * m);
+    const double expected = 1.0 / std::hypot(k - m * w * w, c * w);
+    CHECK(std::stod(cells[6]) == doctest::Approx(expected).epsilon(2e-3));
+  }
+  // Finished points are not silently redone or overwritten.
+  CHECK(box.pdsim("sweep masses.toml", &log) == 1);
+  CHECK(log.find("--resume") != std::string::npos);
+  REQUIRE(box.pdsim("sweep --resume masses.toml", &log) == 0);
+  CHECK(log.find("point 2/3 (structure.mass = 1.0): finished earlier, kept") != std::string::npos);
+  // A sweep deck runs one point at a time only when asked to.
+  CHECK(box.pdsim("run masses.toml", &log) == 1);
+  CHECK(log.find("pdsim sweep") != std::string::npos);
+  REQUIRE(box.pdsim("run --quiet --point 2 -o two.h5 masses.toml", &log) == 0);
+  const pdsim::Results two = pdsim::read_results((box.dir / "two.h5").string());
+  CHECK(two.meta_text.at("sweep_point") == "2: structure.mass = 1.0");
+  CHECK(box.pdsim("run --point 4 masses.toml", &log) == 1);
 }

@@ -1,0 +1,275 @@
+#include "src/sweep.hpp"
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+#include <vector>
+
+#include "io/results.hpp"
+#include "src/scene.hpp"
+
+extern char** environ;
+
+namespace pdsim {
+namespace {
+
+namespace fs = std::filesystem;
+
+volatile std::sig_atomic_t g_stop = 0;
+extern "C" void on_sweep_interrupt(int) {
+  g_stop = 1;
+}
+
+struct Point {
+  int index = 0;
+  Deck deck;
+  std::string file, log;
+  bool resume = false;  // continue from the point's checkpoint
+  bool kept = false;    // finished by an earlier sweep
+  pid_t pid = 0;
+  int code = -1;  // exit code of its process
+};
+
+std::string last_line(const std::string& path) {
+  std::ifstream in(path);
+  std::string line, last;
+  while (std::getline(in, line))
+    if (!line.empty()) last = line;
+  return last;
+}
+
+std::string csv(const std::string& field) {
+  if (field.find_first_of(",\"\n") == std::string::npos) return field;
+  std::string quoted = "\"";
+  for (char c : field) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+std::string number(double v) {
+  std::ostringstream s;
+  s.precision(6);
+  s << v;
+  return s.str();
+}
+
+const char* backend_name(Backend b) {
+  return b == Backend::cpu ? "cpu" : b == Backend::cuda ? "cuda" : "auto";
+}
+
+pid_t launch(const Point& p, const SweepOptions& o, int threads) {
+  std::vector<std::string> args = {"pdsim",
+                                   "run",
+                                   p.deck.path,
+                                   "--point",
+                                   std::to_string(p.index),
+                                   "--output",
+                                   p.file,
+                                   "--threads",
+                                   std::to_string(threads),
+                                   "--quiet"};
+  if (o.force) args.push_back("--force");
+  if (p.resume) args.push_back("--resume");
+  if (o.backend) args.insert(args.end(), {"--backend", backend_name(*o.backend)});
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, p.log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  pid_t pid = 0;
+  const int rc = posix_spawn(&pid, "/proc/self/exe", &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0)
+    throw SimulationError(std::string("cannot start the process of a sweep point: ") +
+                          std::strerror(rc));
+  return pid;
+}
+
+// One row per point: its values, how it ended, and the headline results of its file.
+void write_summary(const Deck& deck, const std::vector<Point>& points, const std::string& path) {
+  const bool frf = deck.excitation.kind == ExcitationKind::stepped_sine;
+  const bool prescribed = deck.excitation.kind == ExcitationKind::prescribed;
+  std::ofstream out(path + ".partial");
+  out << "point";
+  for (const auto& key : deck.sweep.keys) out << "," << csv(key);
+  out << ",status,file,wall_time_s,particle_steps_per_s";
+  if (frf) out << ",peak_amplitude_m,peak_frequency_hz,converged";
+  if (prescribed) out << ",peak_power_w,peak_power_frequency_hz";
+  out << "\n";
+  for (const Point& p : points) {
+    out << p.index;
+    const auto choice = deck.sweep.choice(p.index);
+    for (std::size_t k = 0; k < choice.size(); ++k)
+      out << "," << csv(deck.sweep.values[k][choice[k]]);
+    const bool finished = p.kept || p.code == 0;
+    out << ","
+        << (finished        ? "finished"
+            : p.code == 130 ? "interrupted"
+            : p.code < 0    ? "not run"
+                            : "failed");
+    out << "," << csv(fs::path(p.file).filename().string());
+    if (!finished) {
+      out << "\n";
+      continue;
+    }
+    const Results r = read_results(p.file);
+    const double wall = r.meta_numbers.at("wall_time_s");
+    out << "," << number(wall) << "," << number(r.meta_numbers.at("particle_steps") / wall);
+    auto peak_of = [&](const std::vector<double>& v, const std::vector<double>& f) {
+      const auto k = static_cast<std::size_t>(std::max_element(v.begin(), v.end()) - v.begin());
+      out << "," << number(v[k]) << "," << number(f[k]);
+    };
+    if (frf && !r.frf.frequency.empty()) {
+      peak_of(r.frf.amplitude, r.frf.frequency);
+      int converged = 0;
+      for (int c : r.frf.converged) converged += c;
+      out << "," << converged << "/" << r.frf.converged.size();
+    }
+    if (prescribed && !r.prescribed.frequency.empty())
+      peak_of(r.prescribed.dissipated_power, r.prescribed.frequency);
+    out << "\n";
+  }
+  out.close();
+  fs::rename(path + ".partial", path);
+}
+
+}  // namespace
+
+std::string sweep_folder(const Deck& deck) {
+  const fs::path base = deck.output.file.empty() ? fs::path(fs::path(deck.path).stem().string())
+                                                 : fs::path(deck.output.file);
+  return (base.parent_path() / (base.stem().string() + "_sweep")).string();
+}
+
+std::string point_file(const Deck& deck, int point) {
+  const std::size_t digits = std::max<std::size_t>(3, std::to_string(deck.sweep.points()).size());
+  std::string number = std::to_string(point);
+  number.insert(0, digits - std::min(digits, number.size()), '0');
+  return "p" + number + ".h5";
+}
+
+std::string check_sweep(const Deck& deck, int threads, std::optional<Backend> backend) {
+  std::ostringstream s;
+  s << "sweep: " << deck.sweep.points() << " points, files in " << sweep_folder(deck) << "/\n";
+  for (int k = 1; k <= deck.sweep.points(); ++k) {
+    const Deck point = sweep_point(deck, k);
+    build_scene(point, threads, backend);
+    s << "  point " << k << ": " << deck.sweep.describe(k) << "\n";
+  }
+  return s.str();
+}
+
+int run_sweep(const Deck& deck, const SweepOptions& o) {
+  const int count = deck.sweep.points();
+  if (count == 0)
+    throw InputError(deck.path + ": the deck has no [sweep] table; run it with `pdsim run`");
+  const std::string folder = o.folder.empty() ? sweep_folder(deck) : o.folder;
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int jobs = std::min(count, o.jobs > 0 ? o.jobs : cores);
+  const int threads = o.threads > 0 ? o.threads : std::max(1, cores / jobs);
+
+  // Every point is checked before any runs, so that a bad value stops the sweep at once.
+  std::vector<Point> points(static_cast<std::size_t>(count));
+  for (int k = 1; k <= count; ++k) {
+    Point& p = points[static_cast<std::size_t>(k - 1)];
+    p.index = k;
+    p.deck = sweep_point(deck, k);
+    build_scene(p.deck, threads, o.backend);
+    p.file = (fs::path(folder) / point_file(deck, k)).string();
+    p.log = p.file.substr(0, p.file.size() - 3) + ".log";
+    if (fs::exists(p.file) && !o.force) {
+      if (!o.resume)
+        throw InputError(p.file +
+                         ": exists; use --resume to keep finished points or --force to rerun them");
+      if (read_results(p.file).meta_text.at("deck") != p.deck.text)
+        throw InputError(p.file + ": was run from another deck or point; use --force to rerun it");
+      p.kept = true;
+    }
+    p.resume = o.resume && !p.kept && fs::exists(p.file + ".partial");
+  }
+  fs::create_directories(folder);
+  std::printf("sweep: %d points, %d at a time, %d thread%s each, files in %s/\n", count, jobs,
+              threads, threads > 1 ? "s" : "", folder.c_str());
+  std::fflush(stdout);
+
+  // Without SA_RESTART, so that a signal interrupts waitpid() and is passed on to the points.
+  g_stop = 0;
+  struct sigaction stop = {}, previous_int = {}, previous_term = {};
+  stop.sa_handler = on_sweep_interrupt;
+  sigemptyset(&stop.sa_mask);
+  sigaction(SIGINT, &stop, &previous_int);
+  sigaction(SIGTERM, &stop, &previous_term);
+  std::size_t next = 0;
+  int running = 0;
+  bool forwarded = false;
+  for (;;) {
+    while (!g_stop && running < jobs && next < points.size()) {
+      Point& p = points[next++];
+      if (p.kept) {
+        std::printf("point %d/%d (%s): finished earlier, kept\n", p.index, count,
+                    deck.sweep.describe(p.index).c_str());
+        continue;
+      }
+      p.pid = launch(p, o, threads);
+      ++running;
+    }
+    if (running == 0) break;
+    int status = 0;
+    const pid_t pid = waitpid(-1, &status, 0);
+    if (pid < 0) {
+      if (errno != EINTR) throw SimulationError("waitpid failed: " + std::string(strerror(errno)));
+      if (g_stop && !forwarded) {  // let every running point write its checkpoint
+        for (const Point& p : points)
+          if (p.pid > 0 && p.code < 0) kill(p.pid, SIGINT);
+        forwarded = true;
+      }
+      continue;
+    }
+    auto found =
+        std::find_if(points.begin(), points.end(), [&](const Point& p) { return p.pid == pid; });
+    if (found == points.end()) continue;
+    --running;
+    Point& p = *found;
+    p.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    const std::string outcome = p.code == 0     ? last_line(p.log)
+                                : p.code == 130 ? (fs::exists(p.file + ".partial")
+                                                       ? "interrupted; finished frequencies kept"
+                                                       : "interrupted before its first frequency")
+                                                : "failed (exit code " + std::to_string(p.code) +
+                                                      "): " + last_line(p.log) + " [" + p.log + "]";
+    std::printf("point %d/%d (%s): %s\n", p.index, count, deck.sweep.describe(p.index).c_str(),
+                outcome.c_str());
+    std::fflush(stdout);
+  }
+  sigaction(SIGINT, &previous_int, nullptr);
+  sigaction(SIGTERM, &previous_term, nullptr);
+
+  const std::string summary = (fs::path(folder) / "summary.csv").string();
+  write_summary(deck, points, summary);
+  int failed = 0, finished = 0;
+  for (const Point& p : points) {
+    finished += p.kept || p.code == 0;
+    failed += !p.kept && p.code > 0 && p.code != 130;
+  }
+  std::printf("%d of %d points finished; summary in %s\n", finished, count, summary.c_str());
+  if (g_stop) {
+    std::printf("interrupted: continue with `pdsim sweep %s --resume`\n", deck.path.c_str());
+    return 130;
+  }
+  return failed ? 2 : 0;
+}
+
+}  // namespace pdsim

@@ -1,0 +1,34 @@
+// `pdsim sweep`: every point of a deck's [sweep] table, run as separate `pdsim run --point K`
+// processes, several at once (small scenes run fastest on one core each, so a sweep uses the
+// cores by running points side by side), then one summary table.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "io/deck.hpp"
+
+namespace pdsim {
+
+struct SweepOptions {
+  std::string folder;  // default: sweep_folder(deck)
+  int jobs = 0;        // points run at once; 0 = one per core, at most the number of points
+  int threads = 0;     // threads per point; 0 = the cores shared out among the jobs
+  std::optional<Backend> backend;
+  bool resume = false;  // keep finished points, resume interrupted ones
+  bool force = false;   // rerun every point
+};
+
+// Folder of a sweep's files: the deck's output name without ".h5", plus "_sweep".
+std::string sweep_folder(const Deck& deck);
+// File of sweep point `point` in that folder: "p001.h5" (as many digits as the largest point).
+std::string point_file(const Deck& deck, int point);
+
+// Runs the sweep; returns the exit code (0 all points finished, 2 some failed, 130 interrupted).
+// Throws InputError before running anything when a point's deck is invalid.
+int run_sweep(const Deck& deck, const SweepOptions& options);
+
+// Validates every point of a sweep (deck and scene) and lists them, for `pdsim check`.
+std::string check_sweep(const Deck& deck, int threads, std::optional<Backend> backend);
+
+}  // namespace pdsim

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <thread>
+#include <vector>
 
 #include "src/coupled_system.hpp"
 #include "src/scene.hpp"
@@ -89,6 +91,10 @@ void add_bench_options(CLI::App& app, BenchOptions& o) {
       ->delimiter(',');
   app.add_option("--threads", o.threads, "thread counts to compare (e.g. 1,2)")->delimiter(',');
   app.add_option("--steps", o.steps, "steps per scene (default: about 2e7 particle-steps)");
+  app.add_option("--jobs", o.jobs,
+                 "also run this many copies of each scene at once, one thread each, as the points "
+                 "of `pdsim sweep` run")
+      ->check(CLI::PositiveNumber);
   app.add_flag("--effects", o.effects, "time each optional effect against the full model");
   app.add_flag("--coupling", o.coupling,
                "time one coupling exchange (sdof, 20-element beam) per scheme and integrator");
@@ -197,6 +203,30 @@ int run_bench(const BenchOptions& o) {
       std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %s\n", n, t, steps, wall,
                   static_cast<double>(ps) / wall, probe->bytes_per_particle(),
                   probe->variant().c_str());
+      std::fflush(stdout);
+    }
+  }
+  if (o.jobs > 0) {
+    // Independent scenes side by side (sweep points): the throughput of the whole machine.
+    std::printf(
+        "\n# %d copies of each scene at once, one thread each (as `pdsim sweep` runs points); "
+        "psteps_per_s counts all copies\n",
+        o.jobs);
+    std::printf("%-10s %-8s %-9s %-10s %-14s\n", "particles", "jobs", "steps", "wall_s",
+                "psteps_per_s");
+    for (int n : o.particles) {
+      const long steps = o.steps > 0 ? o.steps : std::max(200L, 20000000L / n);
+      const EngineConfig c = bench_config(n, 1, backend);
+      std::vector<long long> ps(static_cast<std::size_t>(o.jobs));
+      const auto start = std::chrono::steady_clock::now();
+      std::vector<std::thread> copies;
+      for (auto& p : ps) copies.emplace_back([&c, steps, &p] { time_engine(c, steps, &p); });
+      for (auto& copy : copies) copy.join();
+      const double wall =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      double total = 0;
+      for (long long p : ps) total += static_cast<double>(p);
+      std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g\n", n, o.jobs, steps, wall, total / wall);
       std::fflush(stdout);
     }
   }

@@ -15,6 +15,7 @@ struct BenchOptions {
   std::vector<int> particles{196, 8000};
   std::vector<int> threads{1, 2};
   long steps = 0;         // 0 = about 2e7 particle-steps per scene
+  int jobs = 0;           // > 0: also that many copies of each scene at once, one thread each
   bool effects = false;   // also time each optional effect against the full model
   bool coupling = false;  // time one structure <-> particle exchange per scheme and integrator
   std::string backend = "cpu";

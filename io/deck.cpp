@@ -718,12 +718,18 @@ SweepSpec read_sweep(const toml::table& table, const std::string& path) {
     if (parts->front().name == "sweep" || parts->size() < 2)
       throw InputError(pos, sweep_name(key),
                        "expected a key inside a deck table, such as \"excitation.amplitude\"");
-    for (const std::string& other : sweep.keys)
-      for (const auto& [a, b] : {std::pair{key, other}, std::pair{other, key}})
-        if (b.size() > a.size() && b.compare(0, a.size(), a) == 0 &&
-            (b[a.size()] == '.' || b[a.size()] == '['))
-          throw InputError(pos, sweep_name(key),
-                           "overlaps the sweep key \"" + other + "\"; sweep one or the other");
+    // Two keys overlap when one names a place the other also sets ("damper.x" and
+    // "damper[1].x", or "damper.particles" and "damper.particles.count").
+    for (const std::string& other : sweep.keys) {
+      const auto theirs = *split_key(other);
+      bool overlap = true;
+      for (std::size_t i = 0; overlap && i < std::min(parts->size(), theirs.size()); ++i)
+        overlap = (*parts)[i].name == theirs[i].name &&
+                  (!(*parts)[i].index || !theirs[i].index || (*parts)[i].index == theirs[i].index);
+      if (overlap)
+        throw InputError(pos, sweep_name(key),
+                         "overlaps the sweep key \"" + other + "\"; sweep one or the other");
+    }
     const toml::array* values = node->as_array();
     if (!values || values->empty())
       throw InputError(to_pos(path, node->source()), sweep_name(key),
@@ -731,7 +737,11 @@ SweepSpec read_sweep(const toml::table& table, const std::string& path) {
                            (values ? std::string("[]") : describe(*node)));
     sweep.keys.push_back(key);
     sweep.values.emplace_back();
-    for (const toml::node& value : *values) sweep.values.back().push_back(written(value));
+    for (const toml::node& value : *values) {
+      std::string text = written(value);  // on one line, for labels and deck comments
+      std::replace(text.begin(), text.end(), '\n', ' ');
+      sweep.values.back().push_back(text);
+    }
     points *= static_cast<double>(values->size());
     if (points > kMaxSweepPoints)
       throw InputError(pos, sweep_name(key),

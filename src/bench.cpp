@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <exception>
 #include <thread>
 #include <vector>
 
@@ -220,8 +221,18 @@ int run_bench(const BenchOptions& o) {
       std::vector<long long> ps(static_cast<std::size_t>(o.jobs));
       const auto start = std::chrono::steady_clock::now();
       std::vector<std::thread> copies;
-      for (auto& p : ps) copies.emplace_back([&c, steps, &p] { time_engine(c, steps, &p); });
+      std::vector<std::exception_ptr> errors(ps.size());
+      for (std::size_t k = 0; k < ps.size(); ++k)
+        copies.emplace_back([&, k] {
+          try {
+            time_engine(c, steps, &ps[k]);
+          } catch (...) {
+            errors[k] = std::current_exception();
+          }
+        });
       for (auto& copy : copies) copy.join();
+      for (const auto& error : errors)
+        if (error) std::rethrow_exception(error);
       const double wall =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       double total = 0;

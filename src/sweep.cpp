@@ -125,7 +125,13 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
       out << "\n";
       continue;
     }
-    const Results r = read_results(p.file);
+    Results r;
+    try {
+      r = read_results(p.file);
+    } catch (const std::exception& e) {
+      out << ",unreadable: " << csv(e.what()) << "\n";
+      continue;
+    }
     const double wall = r.meta_numbers.at("wall_time_s");
     out << "," << number(wall) << "," << number(r.meta_numbers.at("particle_steps") / wall);
     auto peak_of = [&](const std::vector<double>& v, const std::vector<double>& f) {
@@ -143,6 +149,7 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
     out << "\n";
   }
   out.close();
+  if (!out) throw SimulationError(path + ".partial: could not be written");
   fs::rename(path + ".partial", path);
 }
 
@@ -187,7 +194,12 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
     Point& p = points[static_cast<std::size_t>(k - 1)];
     p.index = k;
     p.deck = sweep_point(deck, k);
-    build_scene(p.deck, threads, o.backend);
+    try {
+      build_scene(p.deck, threads, o.backend);
+    } catch (const InputError& e) {
+      throw InputError(std::string(e.what()) + " (sweep point " + std::to_string(k) + ": " +
+                       deck.sweep.describe(k) + ")");
+    }
     p.file = (fs::path(folder) / point_file(deck, k)).string();
     p.log = p.file.substr(0, p.file.size() - 3) + ".log";
     if (fs::exists(p.file) && !o.force) {
@@ -227,17 +239,19 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
       ++running;
     }
     if (running == 0) break;
+    if (g_stop && !forwarded) {  // let every running point write its checkpoint
+      for (const Point& p : points)
+        if (p.pid > 0 && p.code < 0) kill(p.pid, SIGINT);
+      forwarded = true;
+    }
+    // Polled, so that a signal arriving at any moment is passed on within 50 ms.
     int status = 0;
-    const pid_t pid = waitpid(-1, &status, 0);
-    if (pid < 0) {
-      if (errno != EINTR) throw SimulationError("waitpid failed: " + std::string(strerror(errno)));
-      if (g_stop && !forwarded) {  // let every running point write its checkpoint
-        for (const Point& p : points)
-          if (p.pid > 0 && p.code < 0) kill(p.pid, SIGINT);
-        forwarded = true;
-      }
+    const pid_t pid = waitpid(-1, &status, WNOHANG);
+    if (pid == 0 || (pid < 0 && errno == EINTR)) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
       continue;
     }
+    if (pid < 0) throw SimulationError("waitpid failed: " + std::string(strerror(errno)));
     auto found =
         std::find_if(points.begin(), points.end(), [&](const Point& p) { return p.pid == pid; });
     if (found == points.end()) continue;
@@ -259,17 +273,14 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
 
   const std::string summary = (fs::path(folder) / "summary.csv").string();
   write_summary(deck, points, summary);
-  int failed = 0, finished = 0;
-  for (const Point& p : points) {
-    finished += p.kept || p.code == 0;
-    failed += !p.kept && p.code > 0 && p.code != 130;
-  }
+  int finished = 0;
+  for (const Point& p : points) finished += p.kept || p.code == 0;
   std::printf("%d of %d points finished; summary in %s\n", finished, count, summary.c_str());
   if (g_stop) {
     std::printf("interrupted: continue with `pdsim sweep %s --resume`\n", deck.path.c_str());
     return 130;
   }
-  return failed ? 2 : 0;
+  return finished < count ? 2 : 0;
 }
 
 }  // namespace pdsim

@@ -559,6 +559,9 @@ TEST_CASE("a bad sweep value or key is refused at its place in the [sweep] table
   check_error(
       kSdof + kSine + "[sweep]\n\"damper.particles.count\" = [1]\n\"damper.particles\" = [{}]\n",
       "12:1:", "overlaps the sweep key");
+  check_error(kSdof + kSine + "[sweep]\n\"damper[1].particles.count\" = [1]\n" +
+                  "\"damper.particles.count\" = [2]\n",
+              "12:1:", "overlaps the sweep key");
   const Deck deck = parse_deck(kSdof + kSine + "[sweep]\n\"structure.mass\" = [1.0, 2.0]\n", "d");
   try {
     sweep_point(deck, 3);

@@ -23,6 +23,11 @@ enum class ExcitationKind { stepped_sine, sine, free_decay, prescribed };
 enum class ExcitationInput { force, base_displacement, base_acceleration };
 enum class CouplingScheme { loose, interleaved, tight };
 enum class Backend { automatic, cpu, cuda };
+// The name of a backend in decks and on the command line.
+inline const char* backend_name(Backend b) {
+  constexpr const char* names[] = {"auto", "cpu", "cuda"};
+  return names[static_cast<int>(b)];
+}
 enum class IntegratorKind { exact, cvode };
 
 struct BeamSpec {

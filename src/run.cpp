@@ -14,6 +14,14 @@
 #include "src/sweep.hpp"
 
 namespace pdsim {
+
+std::string number(double v, int precision) {
+  std::ostringstream s;
+  s.precision(precision);
+  s << v;
+  return s.str();
+}
+
 namespace {
 
 volatile std::sig_atomic_t g_interrupted = 0;
@@ -22,13 +30,6 @@ extern "C" void on_interrupt(int) {
 }
 
 using Clock = std::chrono::steady_clock;
-
-std::string number(double v, int precision = 4) {
-  std::ostringstream s;
-  s.precision(precision);
-  s << v;
-  return s.str();
-}
 
 // Progress on stderr: a rewritten line on a terminal, a line every few seconds otherwise.
 class Progress {
@@ -384,9 +385,7 @@ std::string check_report(const Deck& deck, const Scene& scene) {
     s << "dt: " << scene.dt << " s (" << scene.dt_basis << "; limit " << scene.dt_limit << " s)\n";
     steps_per_second = 1.0 / scene.dt;
   }
-  const char* backends[] = {"auto", "cpu", "cuda"};
-  s << "backend: " << backends[static_cast<int>(scene.backend)] << " (" << scene.backend_reason
-    << ")\n";
+  s << "backend: " << backend_name(scene.backend) << " (" << scene.backend_reason << ")\n";
   if (scene.highest_frequency > 0) {
     s << "steps per period: "
       << static_cast<long>(std::ceil(1.0 / (scene.highest_frequency * scene.dt))) << " at "

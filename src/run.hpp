@@ -36,6 +36,9 @@ RunReport run_deck(const Deck& deck, const RunOptions& options);
 // Runs the deck and returns the results without writing a file (tests, benchmarks).
 Results simulate(const Deck& deck, const Scene& scene, bool quiet = true);
 
+// `v` in at most `precision` significant digits (messages, tables).
+std::string number(double v, int precision = 4);
+
 // The derived quantities `pdsim check` prints.
 std::string check_report(const Deck& deck, const Scene& scene);
 

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "io/results.hpp"
+#include "src/run.hpp"
 #include "src/scene.hpp"
 
 extern char** environ;
@@ -55,17 +56,6 @@ std::string csv(const std::string& field) {
   std::string quoted = "\"";
   for (char c : field) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
   return quoted + "\"";
-}
-
-std::string number(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
-
-const char* backend_name(Backend b) {
-  return b == Backend::cpu ? "cpu" : b == Backend::cuda ? "cuda" : "auto";
 }
 
 pid_t launch(const Point& p, const SweepOptions& o, int threads) {
@@ -133,10 +123,10 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
       continue;
     }
     const double wall = r.meta_numbers.at("wall_time_s");
-    out << "," << number(wall) << "," << number(r.meta_numbers.at("particle_steps") / wall);
+    out << "," << number(wall, 6) << "," << number(r.meta_numbers.at("particle_steps") / wall, 6);
     auto peak_of = [&](const std::vector<double>& v, const std::vector<double>& f) {
       const auto k = static_cast<std::size_t>(std::max_element(v.begin(), v.end()) - v.begin());
-      out << "," << number(v[k]) << "," << number(f[k]);
+      out << "," << number(v[k], 6) << "," << number(f[k], 6);
     };
     if (frf && !r.frf.frequency.empty()) {
       peak_of(r.frf.amplitude, r.frf.frequency);
@@ -168,14 +158,31 @@ std::string point_file(const Deck& deck, int point) {
   return "p" + number + ".h5";
 }
 
+namespace {
+
+// The deck of every point, each checked as `pdsim run` would check it; an error names its point.
+std::vector<Deck> checked_points(const Deck& deck, int threads, std::optional<Backend> backend) {
+  std::vector<Deck> points;
+  for (int k = 1; k <= deck.sweep.points(); ++k) {
+    points.push_back(sweep_point(deck, k));
+    try {
+      build_scene(points.back(), threads, backend);
+    } catch (const InputError& e) {
+      throw InputError(std::string(e.what()) + " (sweep point " + std::to_string(k) + ": " +
+                       deck.sweep.describe(k) + ")");
+    }
+  }
+  return points;
+}
+
+}  // namespace
+
 std::string check_sweep(const Deck& deck, int threads, std::optional<Backend> backend) {
   std::ostringstream s;
   s << "sweep: " << deck.sweep.points() << " points, files in " << sweep_folder(deck) << "/\n";
-  for (int k = 1; k <= deck.sweep.points(); ++k) {
-    const Deck point = sweep_point(deck, k);
-    build_scene(point, threads, backend);
+  checked_points(deck, threads, backend);
+  for (int k = 1; k <= deck.sweep.points(); ++k)
     s << "  point " << k << ": " << deck.sweep.describe(k) << "\n";
-  }
   return s.str();
 }
 
@@ -189,17 +196,12 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
   const int threads = o.threads > 0 ? o.threads : std::max(1, cores / jobs);
 
   // Every point is checked before any runs, so that a bad value stops the sweep at once.
+  std::vector<Deck> decks = checked_points(deck, threads, o.backend);
   std::vector<Point> points(static_cast<std::size_t>(count));
   for (int k = 1; k <= count; ++k) {
     Point& p = points[static_cast<std::size_t>(k - 1)];
     p.index = k;
-    p.deck = sweep_point(deck, k);
-    try {
-      build_scene(p.deck, threads, o.backend);
-    } catch (const InputError& e) {
-      throw InputError(std::string(e.what()) + " (sweep point " + std::to_string(k) + ": " +
-                       deck.sweep.describe(k) + ")");
-    }
+    p.deck = std::move(decks[static_cast<std::size_t>(k - 1)]);
     p.file = (fs::path(folder) / point_file(deck, k)).string();
     p.log = p.file.substr(0, p.file.size() - 3) + ".log";
     if (fs::exists(p.file) && !o.force) {

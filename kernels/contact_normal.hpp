@@ -28,19 +28,30 @@ struct LinearNormal {
 };
 
 // Hertz with Tsuji damping: Fn = 4/3 E* sqrt(R*) d^1.5 - 2 sqrt(5/6) beta sqrt(Sn m*) vn,
-// Sn = 2 E* sqrt(R* d); Mindlin kt = 8 G* sqrt(R* d) (Tsuji et al. 1992; LIGGGHTS hertz).
+// Sn = 2 E* a with a = sqrt(R* d); Mindlin kt = 8 G* a, damped by 2 sqrt(5/6) beta sqrt(kt m*)
+// (Tsuji et al. 1992; LIGGGHTS hertz). Both dampings are a constant times sqrt(a m*): two roots
+// per contact instead of three.
 struct HertzNormal {
   static constexpr const char* name = "hertz";
   PDSIM_HD static NormalResponse respond(double overlap, double radius_eff, double mass_eff,
                                          bool wall, const ContactParams& p) {
     const double contact_radius = sqrt(radius_eff * overlap);
+    const double root = sqrt(contact_radius * mass_eff);
     const double modulus = wall ? p.hertz_modulus_pw : p.hertz_modulus_pp;
     const double shear = wall ? p.shear_modulus_pw : p.shear_modulus_pp;
-    const double sn = 2.0 * modulus * contact_radius;
-    const double kt = 8.0 * shear * contact_radius;
-    return {(2.0 / 3.0) * sn * overlap, p.damping_factor * sqrt(sn * mass_eff), kt,
-            p.damping_factor * sqrt(kt * mass_eff)};
+    return {(4.0 / 3.0) * modulus * contact_radius * overlap,
+            (wall ? p.normal_root_pw : p.normal_root_pp) * root, 8.0 * shear * contact_radius,
+            (wall ? p.tangent_root_pw : p.tangent_root_pp) * root};
   }
 };
+
+// `p` with the Hertz damping constants derived from its moduli and damping factor.
+inline ContactParams with_damping_roots(ContactParams p) {
+  p.normal_root_pp = p.damping_factor * std::sqrt(2.0 * p.hertz_modulus_pp);
+  p.normal_root_pw = p.damping_factor * std::sqrt(2.0 * p.hertz_modulus_pw);
+  p.tangent_root_pp = p.damping_factor * std::sqrt(8.0 * p.shear_modulus_pp);
+  p.tangent_root_pw = p.damping_factor * std::sqrt(8.0 * p.shear_modulus_pw);
+  return p;
+}
 
 }  // namespace pdsim

@@ -43,7 +43,7 @@ inline ParticleStepArgs scene_step_args(const EngineConfig& c) {
   a.count = static_cast<int>(c.particles.size());
   a.mono_radius = c.radius.at(0);  // read only by monodisperse variants
   a.mono = sphere_mass(a.mono_radius, c.density);
-  a.contact = c.contact;
+  a.contact = with_damping_roots(c.contact);
   a.geometry = c.geometry;
   a.gravity = c.gravity.value_or(Vec3{});
   return a;

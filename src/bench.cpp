@@ -72,13 +72,8 @@ EngineConfig bench_config(int particles, int threads, Backend backend) {
   c.density = 7800;
   c.gravity = Vec3{0, 0, -9.81};
   c.dt = 1e-6;
-  const double young = 2e11, poisson = 0.3;
-  c.contact.damping_factor = hertz_damping_factor(0.5);
-  c.contact.hertz_modulus_pp = c.contact.hertz_modulus_pw = young / (2 * (1 - poisson * poisson));
-  c.contact.shear_modulus_pp = c.contact.shear_modulus_pw =
-      young / (2 * (1 + poisson)) / (2 * (2 - poisson));
+  c.contact = hertz_contact(2e11, 0.3, 0.5, 0.3);
   c.contact.linear_stiffness = 1e6;
-  c.contact.friction = 0.3;
   c.contact.rolling_friction = 0.01;
   for (const Vec3& p : fill_particles(d, c.radius, SourcePos{"bench", 0, 0}))
     c.particles.push_back({p, {}, {}});

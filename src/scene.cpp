@@ -20,6 +20,16 @@ double hertz_damping_factor(double restitution) {
   return -2.0 * std::sqrt(5.0 / 6.0) * beta;
 }
 
+ContactParams hertz_contact(double young, double poisson, double restitution, double friction) {
+  ContactParams p;
+  p.damping_factor = hertz_damping_factor(restitution);
+  p.hertz_modulus_pp = p.hertz_modulus_pw = young / (2 * (1 - poisson * poisson));
+  const double shear = young / (2 * (1 + poisson));
+  p.shear_modulus_pp = p.shear_modulus_pw = shear / (2 * (2 - poisson));
+  p.friction = friction;
+  return with_damping_roots(p);
+}
+
 double linear_contact_time(double stiffness, double mass_eff, double restitution) {
   const double c = linear_damping_factor(restitution) * std::sqrt(mass_eff * stiffness);
   const double half = c / (2 * mass_eff);
@@ -189,21 +199,16 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
                                       gpu
                                 : "auto: " + gpu;
 
+  // Same material for particles and walls.
   ContactParams params;
-  params.friction = contact.friction;
-  params.rolling_friction = contact.rolling_friction;
-  params.linear_stiffness = contact.stiffness;
-  params.damping_factor = contact.model == NormalModel::linear
-                              ? linear_damping_factor(contact.restitution)
-                              : hertz_damping_factor(contact.restitution);
   if (contact.model == NormalModel::hertz) {
-    // Same material for particles and walls: 1/E* = 2 (1 - nu^2)/E, 1/G* = 2 (2 - nu)/G.
-    const double e_star = contact.young / (2 * (1 - contact.poisson * contact.poisson));
-    const double shear = contact.young / (2 * (1 + contact.poisson));
-    const double g_star = shear / (2 * (2 - contact.poisson));
-    params.hertz_modulus_pp = params.hertz_modulus_pw = e_star;
-    params.shear_modulus_pp = params.shear_modulus_pw = g_star;
+    params = hertz_contact(contact.young, contact.poisson, contact.restitution, contact.friction);
+  } else {
+    params.linear_stiffness = contact.stiffness;
+    params.damping_factor = linear_damping_factor(contact.restitution);
+    params.friction = contact.friction;
   }
+  params.rolling_friction = contact.rolling_friction;
 
   double r_min = 1e300, density_min = 0;
   for (std::size_t k = 0; k < deck.dampers.size(); ++k) {

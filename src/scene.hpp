@@ -38,6 +38,10 @@ Scene build_scene(const Deck& deck, int threads = 0, std::optional<Backend> back
 double linear_damping_factor(double restitution);  // c = factor sqrt(m* k)
 double hertz_damping_factor(double restitution);   // c = factor sqrt(Sn m*)
 
+// Hertz-Mindlin constants of one material on both sides of every contact (particle-particle and
+// particle-wall): E* = E / (2 (1 - nu^2)), G* = G / (2 (2 - nu)), G = E / (2 (1 + nu)).
+ContactParams hertz_contact(double young, double poisson, double restitution, double friction);
+
 // Exact contact time of the linear spring-dashpot: pi / sqrt(k/m* - (c/2m*)^2).
 double linear_contact_time(double stiffness, double mass_eff, double restitution);
 // Rayleigh time pi r sqrt(rho/G) / (0.1631 nu + 0.8766).

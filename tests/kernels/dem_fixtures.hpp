@@ -20,19 +20,6 @@ inline double ball_mass(double radius, double density) {
   return density * 4.0 / 3.0 * kPi * radius * radius * radius;
 }
 
-// One material on both sides of every contact (particle-particle and particle-wall):
-// E* = E / (2 (1 - nu^2)), G* = G / (2 (2 - nu)), G = E / (2 (1 + nu)).
-inline ContactParams hertz_contact(double young, double poisson, double restitution,
-                                   double friction) {
-  ContactParams p;
-  p.damping_factor = hertz_damping_factor(restitution);
-  p.hertz_modulus_pp = p.hertz_modulus_pw = young / (2 * (1 - poisson * poisson));
-  const double shear = young / (2 * (1 + poisson));
-  p.shear_modulus_pp = p.shear_modulus_pw = shear / (2 * (2 - poisson));
-  p.friction = friction;
-  return p;
-}
-
 inline ContactParams linear_contact(double stiffness, double restitution, double friction) {
   ContactParams p;
   p.linear_stiffness = stiffness;

@@ -12,6 +12,7 @@
 
 #include "kernels/engine.hpp"
 #include "src/scene.hpp"
+#include "tests/kernels/dem_fixtures.hpp"
 
 namespace {
 
@@ -60,14 +61,9 @@ EngineConfig make_scene(const SceneSpec& s, Backend backend) {
   if (s.gravity) c.gravity = Vec3{0, 0, -9.81};
   c.density = 7800;
   c.dt = kDt;
-  const double young = 2e11, poisson = 0.3, restitution = 0.5;
-  c.contact.hertz_modulus_pp = c.contact.hertz_modulus_pw = young / (2 * (1 - poisson * poisson));
-  c.contact.shear_modulus_pp = c.contact.shear_modulus_pw =
-      young / (2 * (1 + poisson)) / (2 * (2 - poisson));
-  c.contact.linear_stiffness = 1e5;  // N/m: contact time 160 steps
-  c.contact.damping_factor = s.normal == NormalModel::linear ? linear_damping_factor(restitution)
-                                                             : hertz_damping_factor(restitution);
-  c.contact.friction = 0.3;
+  const double restitution = 0.5;
+  c.contact = s.normal == NormalModel::linear ? fixtures::linear_contact(1e5, restitution, 0.3)
+                                              : hertz_contact(2e11, 0.3, restitution, 0.3);
   c.contact.rolling_friction = s.rolling ? 0.01 : 0.0;
   const double extent = 0.5 * (kSide - 1) * kPitch;  // centre of the outer spheres, m
   const double half_height = 0.5 * (kLayers - 1) * kPitch + kRadius + kWallGap;

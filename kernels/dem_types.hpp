@@ -69,6 +69,6 @@ struct ParticleArrays {
 };
 
 constexpr int kWallSlots = 6;  // box: -x,+x,-y,+y,-z,+z; cylinder: 0 side, 4 -z, 5 +z
-constexpr int kSlotGroup = 4;  // neighbour lists are padded to multiples of this (slot tests)
+constexpr int kSlotGroup = 2;  // neighbour lists are padded to multiples of this (slot tests)
 
 }  // namespace pdsim

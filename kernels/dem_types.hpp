@@ -22,7 +22,8 @@ struct ContactParams {
   double rolling_friction = 0;          // rolling resistance coefficient (torque = mu_r R* |Fn|)
   double slip_velocity = 1e-5;          // m/s, regularises the direction of directional Coulomb
   // Hertz damping per root of (contact radius x m*), derived from the above by
-  // with_damping_roots() (NaN until then, so that a forgotten call shows):
+  // with_damping_roots() when an engine takes the scene (NaN until then, so that a kernel
+  // given underived constants shows it):
   // damping_factor sqrt(2 E*) and damping_factor sqrt(8 G*), particle-particle and -wall.
   double normal_root_pp = std::numeric_limits<double>::quiet_NaN();
   double normal_root_pw = std::numeric_limits<double>::quiet_NaN();

@@ -299,12 +299,12 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   const std::string path = output_path(deck, options);
   const std::string partial = path + ".partial";
   namespace fs = std::filesystem;
-  if (fs::exists(path) && !options.force)
-    throw InputError(path + ": output file exists; use --force to overwrite it");
   if (deck.sweep.points() > 0 && deck.point == 0)
     throw InputError(deck.path + ": the deck has a [sweep] table of " +
                      std::to_string(deck.sweep.points()) +
                      " points; run them all with `pdsim sweep`, or one with `pdsim run --point K`");
+  if (fs::exists(path) && !options.force)
+    throw InputError(path + ": output file exists; use --force to overwrite it");
   const Scene scene = build_scene(deck, options.threads, options.backend);
   if (const fs::path folder = fs::path(path).parent_path(); deck.point > 0 && !folder.empty())
     fs::create_directories(folder);

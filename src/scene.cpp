@@ -27,7 +27,7 @@ ContactParams hertz_contact(double young, double poisson, double restitution, do
   const double shear = young / (2 * (1 + poisson));
   p.shear_modulus_pp = p.shear_modulus_pw = shear / (2 * (2 - poisson));
   p.friction = friction;
-  return with_damping_roots(p);
+  return p;
 }
 
 double linear_contact_time(double stiffness, double mass_eff, double restitution) {

@@ -124,7 +124,7 @@ class CpuEngine final : public DemEngine {
       // Small scenes: a parallel region would cost more than it saves. In one thread, a
       // block's particle pass can follow its pair pass while the block is in cache: a
       // particle's pairs are computed by itself and its lower partners, all done by then
-      // (+3-5 % at 8,000 spheres). Across threads the blocks waiting for another thread's
+      // (+3.5 % at 8,000 spheres). Across threads the blocks waiting for another thread's
       // pairs cost more than that (measured -5 % on 2 threads), so they keep two passes.
       for (int b = 0; b < blocks; ++b) {
         pair_block(b);

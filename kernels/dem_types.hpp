@@ -72,4 +72,20 @@ struct ParticleArrays {
 constexpr int kWallSlots = 6;  // box: -x,+x,-y,+y,-z,+z; cylinder: 0 side, 4 -z, 5 +z
 constexpr int kSlotGroup = 2;  // neighbour lists are padded to multiples of this (slot tests)
 
+// A reverse-list entry names a forward slot by its owner and its place k in the owner's list
+// (k < 64, the width of the slot masks), packed in one int32: owner << kSlotBits | k. The
+// place is layout-free, so both backends' lists (compact on the CPU, fixed stride on the GPU)
+// share the format.
+constexpr int kSlotBits = 6;
+constexpr int kMaxParticles = (1 << (31 - kSlotBits)) - 1;  // owners that fit in an entry
+PDSIM_HD std::int32_t reverse_entry(int owner, int k) {
+  return owner << kSlotBits | k;
+}
+PDSIM_HD int entry_owner(std::int32_t e) {
+  return e >> kSlotBits;
+}
+PDSIM_HD int entry_place(std::int32_t e) {
+  return e & ((1 << kSlotBits) - 1);
+}
+
 }  // namespace pdsim

@@ -64,6 +64,36 @@ std::vector<double> live_history(std::vector<double> history, const std::vector<
   return history;
 }
 
+// Checkpoints store the lists in the fixed-stride layout (`slots` per particle, the GPU's own),
+// whatever the backend's, so that they move between backends and versions. A reverse entry is
+// stored there as the flat slot owner * slots + k (-1 where unused).
+inline std::vector<double> flat_reverse(const std::vector<std::int32_t>& entries, int slots) {
+  std::vector<double> out(entries.size(), -1.0);
+  for (std::size_t r = 0; r < entries.size(); ++r)
+    if (entries[r] >= 0)
+      out[r] = static_cast<double>(entry_owner(entries[r])) * slots + entry_place(entries[r]);
+  return out;
+}
+inline std::vector<std::int32_t> packed_reverse(const std::vector<double>& flat, int slots) {
+  std::vector<std::int32_t> out(flat.size(), -1);
+  for (std::size_t r = 0; r < flat.size(); ++r)
+    if (flat[r] >= 0) {
+      const auto s = static_cast<long long>(flat[r]);
+      out[r] = reverse_entry(static_cast<int>(s / slots), static_cast<int>(s % slots));
+    }
+  return out;
+}
+
+// Both backends index slots with int32 and pack reverse entries (see reverse_entry()).
+inline void check_particle_count(int count, int max_neighbours) {
+  if (count > kMaxParticles ||
+      static_cast<long long>(count) * max_neighbours > std::numeric_limits<std::int32_t>::max())
+    throw SimulationError(std::to_string(count) + " particles with " +
+                          std::to_string(max_neighbours) +
+                          " neighbour slots each are more than a DEM engine indexes (at most " +
+                          std::to_string(kMaxParticles) + " particles and 2^31 slots)");
+}
+
 class DemEngine {
  public:
   virtual ~DemEngine() = default;

@@ -37,8 +37,8 @@ inline double default_skin(double r_min, double configured) {
   return configured > 0 ? configured : 0.3 * r_min;
 }
 
-// Slots per particle: the densest packing (0.7405) of the smallest spheres in a ball of radius
-// reach + r_min, capped at the 64 bits of the history mask.
+// Longest list (and the GPU's slots per particle): the densest packing (0.7405) of the
+// smallest spheres in a ball of radius reach + r_min, capped at the 64 bits of the slot masks.
 inline int neighbour_slots(double r_min, double r_max, double skin) {
   const double reach = 2 * r_max + skin + r_min;
   const int bound = static_cast<int>(ceil(0.7405 * pow(reach / r_min, 3)));
@@ -76,15 +76,20 @@ struct NeighbourBuildArgs {
   double skin;                     // m
   const std::int32_t* cell_start;  // first sorted index of each cell
   const std::int32_t* cell_end;    // one past the last
-  int max_neighbours;
-  std::int32_t* neighbours;       // out: count x max_neighbours
+  int max_neighbours;              // longest list allowed (<= 64, a multiple of kSlotGroup)
+  // Particle i's forward list starts at slot_start[i], its reverse list at reverse_start[i]:
+  // i * max_neighbours on the GPU; on the CPU a compact layout the lists are counted for first.
+  const std::int32_t* slot_start;
+  const std::int32_t* reverse_start;
+  std::int32_t* neighbours;       // out, nullptr to count only (into neighbour_count)
   std::int32_t* neighbour_count;  // out
   std::int32_t* partner_id;       // out: identity of each listed partner
-  std::int32_t* reverse;          // out: count x max_neighbours forward slots listing each particle
+  std::int32_t* reverse;          // out: reverse_entry()s, nullptr to count only
   std::int32_t* reverse_count;    // out
   const std::int32_t* id;         // identity of each particle in the new order
   // History carried over (nullptr when the scene has no tangential history).
   const std::int32_t* old_index;  // new index -> index before the reorder
+  const std::int32_t* old_slot_start;
   const std::int32_t* old_partner_id;
   const std::int32_t* old_neighbour_count;
   const std::uint64_t* old_mask;
@@ -93,11 +98,13 @@ struct NeighbourBuildArgs {
   double* new_history;
 };
 
-// Fills the list of particle i from `count` up to the next multiple of kSlotGroup with i
-// itself, so that slot tests may read whole groups (the padding is masked off).
-PDSIM_HD void pad_slots(int i, int count, int max_neighbours, std::int32_t* neighbours) {
-  for (int k = count; k % kSlotGroup != 0 && k < max_neighbours; ++k)
-    neighbours[i * max_neighbours + k] = i;
+// A list of `count` entries padded with `self` to the next multiple of kSlotGroup, so that
+// slot tests may read whole groups (the padding is masked off).
+PDSIM_HD int padded(int count) {
+  return (count + kSlotGroup - 1) / kSlotGroup * kSlotGroup;
+}
+PDSIM_HD void pad_slots(std::int32_t* list, int count, int self) {
+  for (int k = count; k < padded(count); ++k) list[k] = self;
 }
 
 // Calls f(j) for every particle j in the 27 cells around position p, in a fixed order (so the
@@ -125,11 +132,13 @@ PDSIM_HD int find_slot(const std::int32_t* list, int count, std::int32_t partner
 }
 
 // Forward list of particle i: every particle of higher index within reach + skin, so that each
-// pair is listed once. Returns false on list overflow.
+// pair is listed once, written from slot_start[i] (or only counted). Returns false on list
+// overflow.
 PDSIM_HD bool build_neighbours_of(int i, const NeighbourBuildArgs& a) {
   const Vec3 p{a.x[i], a.y[i], a.z[i]};
   const double ri = a.radius ? a.radius[i] : a.mono_radius;
-  const int base = i * a.max_neighbours;
+  std::int32_t* list = a.neighbours ? a.neighbours + a.slot_start[i] : nullptr;
+  std::int32_t* partner = a.neighbours ? a.partner_id + a.slot_start[i] : nullptr;
   int n = 0;
   bool fits = true;
   for_each_nearby(a.grid, p, a.cell_start, a.cell_end, [&](int j) {
@@ -141,31 +150,35 @@ PDSIM_HD bool build_neighbours_of(int i, const NeighbourBuildArgs& a) {
       fits = false;
       return;
     }
-    a.neighbours[base + n] = j;
-    a.partner_id[base + n] = a.id[j];
+    if (list) {
+      list[n] = j;
+      partner[n] = a.id[j];
+    }
     ++n;
   });
   a.neighbour_count[i] = n;
-  pad_slots(i, n, a.max_neighbours, a.neighbours);
+  if (!list) return fits;
+  pad_slots(list, n, i);
   if (a.new_mask) {
     // Carry the tangential history of contacts that survive the rebuild. A pair's history
     // lives with its owner (the lower index); when the owners swap, it changes sign.
-    auto live_slot = [&](int old_owner, std::int32_t partner) {  // flat old slot, or -1
-      const int m = find_slot(a.old_partner_id + old_owner * a.max_neighbours,
-                              a.old_neighbour_count[old_owner], partner);
-      return m >= 0 && (a.old_mask[old_owner] >> m & 1u) ? old_owner * a.max_neighbours + m : -1;
+    auto live_slot = [&](int old_owner, std::int32_t partner_id) {  // flat old slot, or -1
+      const int start = a.old_slot_start[old_owner];
+      const int m =
+          find_slot(a.old_partner_id + start, a.old_neighbour_count[old_owner], partner_id);
+      return m >= 0 && (a.old_mask[old_owner] >> m & 1u) ? start + m : -1;
     };
     std::uint64_t mask = 0;
     for (int k = 0; k < n; ++k) {
       double sign = 1;
-      int from = live_slot(a.old_index[i], a.partner_id[base + k]);
+      int from = live_slot(a.old_index[i], partner[k]);
       if (from < 0) {
         sign = -1;
-        from = live_slot(a.old_index[a.neighbours[base + k]], a.id[i]);
+        from = live_slot(a.old_index[list[k]], a.id[i]);
       }
       if (from < 0) continue;
       for (int c = 0; c < 3; ++c)
-        a.new_history[3 * (base + k) + c] = sign * a.old_history[3 * from + c];
+        a.new_history[3 * (a.slot_start[i] + k) + c] = sign * a.old_history[3 * from + c];
       mask |= std::uint64_t{1} << k;
     }
     a.new_mask[i] = mask;
@@ -173,22 +186,22 @@ PDSIM_HD bool build_neighbours_of(int i, const NeighbourBuildArgs& a) {
   return fits;
 }
 
-// Reverse list of particle j, after every forward list is built: the forward slots
-// (owner * max_neighbours + k) of the particles that list j, in a fixed order. Returns false
-// on list overflow.
+// Reverse list of particle j, after every forward list is built: the forward slots of the
+// particles that list j (reverse_entry()s), in a fixed order, written from reverse_start[j] (or
+// only counted). Returns false on list overflow.
 PDSIM_HD bool build_reverse_of(int j, const NeighbourBuildArgs& a) {
-  const int base = j * a.max_neighbours;
   int n = 0;
   bool fits = true;
   for_each_nearby(a.grid, {a.x[j], a.y[j], a.z[j]}, a.cell_start, a.cell_end, [&](int i) {
     if (i >= j) return;
-    const int k = find_slot(a.neighbours + i * a.max_neighbours, a.neighbour_count[i], j);
+    const int k = find_slot(a.neighbours + a.slot_start[i], a.neighbour_count[i], j);
     if (k < 0) return;
     if (n == a.max_neighbours) {
       fits = false;
       return;
     }
-    a.reverse[base + n++] = i * a.max_neighbours + k;
+    if (a.reverse) a.reverse[a.reverse_start[j] + n] = reverse_entry(i, k);
+    ++n;
   });
   a.reverse_count[j] = n;
   return fits;

@@ -35,7 +35,7 @@ struct Variant {
 // traffic (a slot is read only when its bit is set in the input mask). Every scene has the
 // masks: the pair pass marks the touching slots there for the particle pass.
 struct HistoryArrays {
-  const double* neighbour_in;  // count x max_neighbours x 3
+  const double* neighbour_in;  // 3 per forward slot
   double* neighbour_out;
   const std::uint64_t* neighbour_mask_in;
   std::uint64_t* neighbour_mask_out;  // forward slots in contact, set by the pair pass
@@ -74,17 +74,20 @@ struct ParticleStepArgs {
   double mono_radius;         // monodisperse: every particle's radius and mass
   SphereMass mono;
   // Forward lists: partners of higher index within reach + skin, so that each pair is listed
-  // once (count x max_neighbours, padded, see neighbours.hpp).
+  // once; particle i's list (padded, see neighbours.hpp) starts at slot slot_start[i]. Pair
+  // history and loads live in the same slots.
   const std::int32_t* neighbours;
   const std::int32_t* neighbour_count;
-  // Reverse lists: the forward slots (owner * max_neighbours + k) that list particle i.
+  const std::int32_t* slot_start;
+  // Reverse lists: the forward slots that list particle i (reverse_entry()s), from
+  // reverse_start[i].
   const std::int32_t* reverse;
   const std::int32_t* reverse_count;
-  int max_neighbours;
+  const std::int32_t* reverse_start;
   HistoryArrays history;
   // Written by the pair pass, read by the particle pass (with history.neighbour_mask_out).
   std::uint32_t* incoming;  // set when a lower particle touches i; the particle pass clears it
-  double* pair_load;        // count x max_neighbours x pair_doubles<V>()
+  double* pair_load;        // pair_doubles<V>() per slot
   ContactParams contact;
   ContainerGeometry geometry;
   ContainerKinematics container;
@@ -215,7 +218,7 @@ PDSIM_COLD void pair_contacts(int i, std::uint64_t touching, const ParticleStepA
   const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
   const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
   const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
-  const int base = i * a.max_neighbours;
+  const int base = a.slot_start[i];
   std::uint64_t mask_in = 0;
   if constexpr (V::Tangential::kHistory) mask_in = a.history.neighbour_mask_in[i];
   for (std::uint64_t m = touching; m; m &= m - 1) {
@@ -259,7 +262,7 @@ PDSIM_COLD void pair_contacts(int i, std::uint64_t touching, const ParticleStepA
 template <class V>
 PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
   Load load;
-  const int base = i * a.max_neighbours;
+  const int base = a.slot_start[i];
   for (std::uint64_t m = a.history.neighbour_mask_out[i]; m; m &= m - 1) {
     const double* slot = a.pair_load + pair_doubles<V>() * (base + lowest_bit(m));
     load.force += load3(slot, 0);
@@ -267,11 +270,11 @@ PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
   }
   if (a.incoming[i]) {
     a.incoming[i] = 0;
+    const std::int32_t* reverse = a.reverse + a.reverse_start[i];
     for (int r = 0; r < a.reverse_count[i]; ++r) {
-      const int s = a.reverse[base + r];
-      const int owner = s / a.max_neighbours;
-      if (a.history.neighbour_mask_out[owner] >> (s - owner * a.max_neighbours) & 1u) {
-        const double* slot = a.pair_load + pair_doubles<V>() * s;
+      const int owner = entry_owner(reverse[r]), k = entry_place(reverse[r]);
+      if (a.history.neighbour_mask_out[owner] >> k & 1u) {
+        const double* slot = a.pair_load + pair_doubles<V>() * (a.slot_start[owner] + k);
         load.force -= load3(slot, 0);
         load.torque += load3(slot, pair_doubles<V>() == 9 ? 2 : 1);
       }
@@ -391,7 +394,7 @@ inline int pair_hits(Vec3 x, Double2 reach_sq, const ParticleArrays& in, int ja,
 template <class V>
 PDSIM_HD std::uint64_t touching_slots(int i, Vec3 x, double radius, const ParticleStepArgs& a) {
   const int n = a.neighbour_count[i];
-  const std::int32_t* slots = a.neighbours + i * a.max_neighbours;
+  const std::int32_t* slots = a.neighbours + a.slot_start[i];
   std::uint64_t touching = 0;
 #if defined(__CUDACC__) || !defined(__GNUC__)
   for (int k = 0; k < n; ++k) {

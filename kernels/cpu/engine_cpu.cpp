@@ -88,6 +88,7 @@ class CpuEngine final : public DemEngine {
     r_max_ = *rmax_it;
     skin_ = default_skin(r_min_, c.skin);
     max_neighbours_ = neighbour_slots(r_min_, r_max_, skin_);
+    check_particle_count(count_, max_neighbours_);
     const std::size_t n = static_cast<std::size_t>(count_);
     for (auto& s : state_) s.resize(n);
     radius_ = c.radius;
@@ -181,22 +182,20 @@ class CpuEngine final : public DemEngine {
       s.wx[i] = q.spin.x, s.wy[i] = q.spin.y, s.wz[i] = q.spin.z;
     }
     const std::size_t n = static_cast<std::size_t>(count_);
-    const std::size_t slots = n * static_cast<std::size_t>(max_neighbours_);
     for (auto& h : history_) {
-      h.neighbour.assign(V::Tangential::kHistory ? 3 * slots : 0, 0.0);
+      h.neighbour.clear();
       h.neighbour_mask.assign(n, 0);
       h.wall.assign(V::Tangential::kHistory ? 3 * kWallSlots * n : 0, 0.0);
       h.wall_mask.assign(n, 0);
     }
-    neighbours_.assign(slots, -1);
-    partner_id_.assign(slots, -1);
+    neighbours_.clear();
+    partner_id_.clear();
+    reverse_.clear();
     neighbour_count_.assign(n, 0);
-    reverse_.assign(slots, -1);
     reverse_count_.assign(n, 0);
+    slot_start_.assign(n + 1, 0);
+    reverse_start_.assign(n + 1, 0);
     incoming_.assign(n, 0);
-    // Written before it is read, and only for pairs in contact: left uninitialised, so that
-    // the pages of slots never used are never touched.
-    pair_load_.reset(new double[pair_doubles<V>() * slots]);
     needs_rebuild_ = true;
   }
 
@@ -208,7 +207,21 @@ class CpuEngine final : public DemEngine {
     out["id"].assign(id_.begin(), id_.end());
     out["radius"] = radius_;
     const HistoryBuffer& h = history_[current_];
-    out["history"] = live_history(h.neighbour, h.neighbour_mask, max_neighbours_);
+    // The checkpoint layout: max_neighbours_ slots per particle (see flat_reverse()).
+    const std::size_t slots = static_cast<std::size_t>(count_) * max_neighbours_;
+    std::vector<std::int32_t> neighbours(slots, -1), partner(slots, -1), reverse(slots, -1);
+    std::vector<double> history(V::Tangential::kHistory ? 3 * slots : 0, 0.0);
+    for (int i = 0; i < count_; ++i) {
+      const std::size_t to = static_cast<std::size_t>(i) * max_neighbours_;
+      const int from = slot_start_[i], n = neighbour_count_[i];
+      std::copy_n(&neighbours_[from], padded(n), &neighbours[to]);
+      std::copy_n(&partner_id_[from], n, &partner[to]);
+      std::copy_n(&reverse_[reverse_start_[i]], reverse_count_[i], &reverse[to]);
+      for (int k = 0; k < n && !history.empty(); ++k)
+        if (h.neighbour_mask[i] >> k & 1u)
+          std::copy_n(&h.neighbour[3 * (from + k)], 3, &history[3 * (to + k)]);
+    }
+    out["history"] = std::move(history);
     out["wall_history"] = live_history(h.wall, h.wall_mask, kWallSlots);
     out["wall_mask"].assign(h.wall_mask.begin(), h.wall_mask.end());
     auto& mask_lo = out["mask_lo"];
@@ -217,10 +230,10 @@ class CpuEngine final : public DemEngine {
       mask_lo.push_back(static_cast<double>(m & 0xffffffffu));
       mask_hi.push_back(static_cast<double>(m >> 32));
     }
-    out["neighbours"].assign(neighbours_.begin(), neighbours_.end());
-    out["partner_id"].assign(partner_id_.begin(), partner_id_.end());
+    out["neighbours"].assign(neighbours.begin(), neighbours.end());
+    out["partner_id"].assign(partner.begin(), partner.end());
     out["neighbour_count"].assign(neighbour_count_.begin(), neighbour_count_.end());
-    out["reverse"].assign(reverse_.begin(), reverse_.end());
+    out["reverse"] = flat_reverse(reverse, max_neighbours_);
     out["reverse_count"].assign(reverse_count_.begin(), reverse_count_.end());
     out["grid"] = {grid_.origin.x,
                    grid_.origin.y,
@@ -257,7 +270,6 @@ class CpuEngine final : public DemEngine {
     radius_ = get("radius");
     set_mass_properties();
     HistoryBuffer& h = history_[current_];
-    h.neighbour = get("history");
     h.wall = get("wall_history");
     to_int(get("wall_mask"), h.wall_mask);
     const auto& lo = get("mask_lo");
@@ -265,11 +277,24 @@ class CpuEngine final : public DemEngine {
     for (std::size_t i = 0; i < lo.size(); ++i)
       h.neighbour_mask[i] = static_cast<std::uint64_t>(lo[i]) | static_cast<std::uint64_t>(hi[i])
                                                                     << 32;
-    to_int(get("neighbours"), neighbours_);
-    to_int(get("partner_id"), partner_id_);
+    // From the checkpoint layout (max_neighbours_ slots per particle) to the compact one.
     to_int(get("neighbour_count"), neighbour_count_);
-    to_int(get("reverse"), reverse_);
     to_int(get("reverse_count"), reverse_count_);
+    std::vector<std::int32_t> neighbours, partner;
+    to_int(get("neighbours"), neighbours);
+    to_int(get("partner_id"), partner);
+    const std::vector<std::int32_t> reverse = packed_reverse(get("reverse"), max_neighbours_);
+    const std::vector<double>& history = get("history");
+    set_slot_starts();
+    set_reverse_starts();
+    for (int i = 0; i < count_; ++i) {
+      const std::size_t from = static_cast<std::size_t>(i) * max_neighbours_;
+      const int to = slot_start_[i], n = neighbour_count_[i];
+      std::copy_n(&neighbours[from], padded(n), &neighbours_[to]);
+      std::copy_n(&partner[from], n, &partner_id_[to]);
+      std::copy_n(&reverse[from], reverse_count_[i], &reverse_[reverse_start_[i]]);
+      if (V::Tangential::kHistory) std::copy_n(&history[3 * from], 3 * n, &h.neighbour[3 * to]);
+    }
     travel_ = grid.at(9);
     grid_ = {{grid[0], grid[1], grid[2]},
              grid[3],
@@ -279,18 +304,19 @@ class CpuEngine final : public DemEngine {
     needs_rebuild_ = grid[7] != 0.0;
   }
 
+  // Memory held now: the lists take what the last build needed (nothing before the first step).
   std::size_t bytes_per_particle() const override {
-    std::size_t bytes =
-        2 * 9 * sizeof(double)  // state, double buffered
-        + sizeof(std::int32_t)  // id
-        + static_cast<std::size_t>(max_neighbours_) *
-              (3 * sizeof(std::int32_t) + pair_doubles<V>() * sizeof(double))  // lists
-        + 2 * sizeof(std::int32_t) + sizeof(std::uint32_t);                    // counts, incoming
-    if (V::kPolydisperse) bytes += 3 * sizeof(double);
-    if (V::Tangential::kHistory)
-      bytes += 2 * (3 * sizeof(double) * (static_cast<std::size_t>(max_neighbours_) + kWallSlots) +
-                    sizeof(std::uint64_t) + 1);
-    return bytes;
+    auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+    std::size_t sum = pair_capacity_ * pair_doubles<V>() * sizeof(double) + bytes(radius_) +
+                      bytes(inv_mass_) + bytes(inv_inertia_) + bytes(incoming_);
+    for (const auto& s : state_)
+      for (const auto* a : s.all) sum += bytes(*a);
+    for (const auto& h : history_)
+      sum += bytes(h.neighbour) + bytes(h.wall) + bytes(h.neighbour_mask) + bytes(h.wall_mask);
+    for (const auto* a : {&id_, &neighbours_, &partner_id_, &neighbour_count_, &slot_start_,
+                          &reverse_, &reverse_count_, &reverse_start_})
+      sum += bytes(*a);
+    return sum / static_cast<std::size_t>(count_);
   }
 
  private:
@@ -319,7 +345,8 @@ class CpuEngine final : public DemEngine {
     a.neighbour_count = neighbour_count_.data();
     a.reverse = reverse_.data();
     a.reverse_count = reverse_count_.data();
-    a.max_neighbours = max_neighbours_;
+    a.slot_start = slot_start_.data();
+    a.reverse_start = reverse_start_.data();
     a.history = history_view(hin, hout);
     a.incoming = incoming_.data();
     a.pair_load = pair_load_.get();
@@ -370,9 +397,19 @@ class CpuEngine final : public DemEngine {
     b.cell_start = cell_start.data();
     b.cell_end = cell_start.data() + 1;
     b.id = id_.data();
-    std::vector<std::int32_t> old_partner = partner_id_, old_count = neighbour_count_;
+    b.max_neighbours = max_neighbours_;
+    b.slot_start = slot_start_.data();
+    b.reverse_start = reverse_start_.data();
+    b.neighbour_count = neighbour_count_.data();
+    b.reverse_count = reverse_count_.data();
+    const std::vector<std::int32_t> old_start = slot_start_, old_partner = partner_id_,
+                                    old_count = neighbour_count_;
+    // The lists are compact: counted first, then written from their starts.
+    bool fits = for_all([&](int i) { return build_neighbours_of(i, b); });
+    set_slot_starts();
     if (V::Tangential::kHistory) {
       b.old_index = order.data();
+      b.old_slot_start = old_start.data();
       b.old_partner_id = old_partner.data();
       b.old_neighbour_count = old_count.data();
       b.old_mask = hin.neighbour_mask.data();
@@ -380,21 +417,14 @@ class CpuEngine final : public DemEngine {
       b.new_mask = scratch.neighbour_mask.data();
       b.new_history = scratch.neighbour.data();
     }
-    b.max_neighbours = max_neighbours_;
     b.neighbours = neighbours_.data();
-    b.neighbour_count = neighbour_count_.data();
     b.partner_id = partner_id_.data();
+    fits &= for_all([&](int i) { return build_neighbours_of(i, b); });
+    fits &= for_all([&](int i) { return build_reverse_of(i, b); });
+    set_reverse_starts();
     b.reverse = reverse_.data();
-    b.reverse_count = reverse_count_.data();
-    int overflow = 0;
-#pragma omp parallel num_threads(threads_) reduction(| : overflow)
-    {
-#pragma omp for schedule(static)
-      for (int i = 0; i < count_; ++i) overflow |= build_neighbours_of(i, b) ? 0 : 1;
-#pragma omp for schedule(static)
-      for (int i = 0; i < count_; ++i) overflow |= build_reverse_of(i, b) ? 0 : 1;
-    }
-    if (overflow)
+    fits &= for_all([&](int i) { return build_reverse_of(i, b); });
+    if (!fits)
       throw SimulationError("neighbour list overflow (" + std::to_string(max_neighbours_) +
                             " slots): particles are packed beyond the densest packing; the "
                             "simulation has most likely blown up");
@@ -406,6 +436,40 @@ class CpuEngine final : public DemEngine {
     needs_rebuild_ = false;
   }
 
+  // Whether f(i) holds for every particle, f run over the threads.
+  template <class F>
+  bool for_all(F&& f) {
+    int failed = 0;
+#pragma omp parallel for num_threads(threads_) schedule(static) reduction(| : failed)
+    for (int i = 0; i < count_; ++i) failed |= f(i) ? 0 : 1;
+    return !failed;
+  }
+
+  // Compact forward lists: starts from the (padded) counts, and room for their slots. The
+  // arrays only grow, so that the old history stays intact while the new lists are written.
+  void set_slot_starts() {
+    for (int i = 0; i < count_; ++i)
+      slot_start_[i + 1] = slot_start_[i] + padded(neighbour_count_[i]);
+    const auto slots = static_cast<std::size_t>(slot_start_[count_]);
+    grow(neighbours_, slots);
+    grow(partner_id_, slots);
+    if (V::Tangential::kHistory)
+      for (auto& h : history_) grow(h.neighbour, 3 * slots);
+    if (slots > pair_capacity_) {
+      // Written before it is read, and only for pairs in contact: left uninitialised.
+      pair_capacity_ = slots + slots / 4;
+      pair_load_.reset(new double[pair_doubles<V>() * pair_capacity_]);
+    }
+  }
+  void set_reverse_starts() {
+    for (int i = 0; i < count_; ++i) reverse_start_[i + 1] = reverse_start_[i] + reverse_count_[i];
+    grow(reverse_, static_cast<std::size_t>(reverse_start_[count_]));
+  }
+  template <class T>
+  static void grow(std::vector<T>& v, std::size_t size) {
+    if (v.size() < size) v.resize(size);
+  }
+
   EngineConfig config_;
   ParticleStepArgs scene_args_ = scene_step_args(config_);
   int count_ = 0, threads_ = 1, max_neighbours_ = 1, current_ = 0;
@@ -414,10 +478,12 @@ class CpuEngine final : public DemEngine {
   StateBuffer state_[2];
   HistoryBuffer history_[2];
   std::vector<double> radius_, inv_mass_, inv_inertia_;
-  std::vector<std::int32_t> id_, neighbours_, partner_id_, neighbour_count_, reverse_,
-      reverse_count_;
+  // Lists in a compact layout: particle i's from slot_start_[i] (reverse_start_[i]).
+  std::vector<std::int32_t> id_, neighbours_, partner_id_, neighbour_count_, slot_start_, reverse_,
+      reverse_count_, reverse_start_;
   std::vector<std::uint32_t> incoming_;
   std::unique_ptr<double[]> pair_load_;
+  std::size_t pair_capacity_ = 0;  // slots pair_load_ holds
   Grid grid_{};
   bool needs_rebuild_ = true;
   std::vector<StepTotals> block_totals_;

@@ -306,6 +306,7 @@ class CudaEngine final : public DemEngine {
     r_max_ = *rmax_it;
     skin_ = default_skin(r_min_, c.skin);
     max_neighbours_ = neighbour_slots(r_min_, r_max_, skin_);
+    check_particle_count(count_, max_neighbours_);
     int device = 0;
     check(cudaGetDevice(&device), "cudaGetDevice");
     cudaDeviceProp prop{};
@@ -424,7 +425,7 @@ class CudaEngine final : public DemEngine {
     out["neighbours"] = as_doubles(neighbours_.download(stream_));
     out["partner_id"] = as_doubles(partner_id_.download(stream_));
     out["neighbour_count"] = as_doubles(neighbour_count_.download(stream_));
-    out["reverse"] = as_doubles(reverse_.download(stream_));
+    out["reverse"] = flat_reverse(reverse_.download(stream_), max_neighbours_);
     out["reverse_count"] = as_doubles(reverse_count_.download(stream_));
     out["grid"] = {grid_.origin.x,
                    grid_.origin.y,
@@ -479,7 +480,7 @@ class CudaEngine final : public DemEngine {
     partner_id_.upload(to_int(get("partner_id"), std::int32_t{}), stream, "partner_id");
     neighbour_count_.upload(to_int(get("neighbour_count"), std::int32_t{}), stream,
                             "neighbour_count");
-    reverse_.upload(to_int(get("reverse"), std::int32_t{}), stream, "reverse");
+    reverse_.upload(packed_reverse(get("reverse"), max_neighbours_), stream, "reverse");
     reverse_count_.upload(to_int(get("reverse_count"), std::int32_t{}), stream, "reverse_count");
     needs_rebuild_ = grid[7] != 0.0;
     overflow_.fill_bytes(0, stream);
@@ -504,7 +505,7 @@ class CudaEngine final : public DemEngine {
       bytes += a->bytes();
     for (const auto* a :
          {&id_, &id_next_, &order_in_, &order_, &neighbours_, &partner_id_, &partner_id_old_,
-          &neighbour_count_, &neighbour_count_old_, &reverse_, &reverse_count_})
+          &neighbour_count_, &neighbour_count_old_, &reverse_, &reverse_count_, &slot_start_})
       bytes += a->bytes();
     bytes += incoming_.bytes() + pair_load_.bytes();
     bytes += cell_key_.bytes() + cell_key_sorted_.bytes();
@@ -542,6 +543,11 @@ class CudaEngine final : public DemEngine {
     reverse_count_.resize(n);
     incoming_.resize(n);
     pair_load_.resize(static_cast<std::size_t>(step_.pair_doubles) * slots);
+    // Fixed stride: particle i's lists start at i * max_neighbours (forward and reverse alike).
+    std::vector<std::int32_t> start(n + 1);
+    for (std::size_t i = 0; i <= n; ++i) start[i] = static_cast<std::int32_t>(i) * max_neighbours_;
+    slot_start_.upload(start, stream_.get(), "slot_start");
+    stream_.synchronize();  // `start` is pageable host memory about to go away
   }
 
   // Forgets all contacts (as the CPU engine's set_particles does).
@@ -576,7 +582,8 @@ class CudaEngine final : public DemEngine {
     a.neighbour_count = neighbour_count_.data();
     a.reverse = reverse_.data();
     a.reverse_count = reverse_count_.data();
-    a.max_neighbours = max_neighbours_;
+    a.slot_start = slot_start_.data();
+    a.reverse_start = slot_start_.data();
     a.history = history_view(hin, hout);
     a.incoming = incoming_.data();
     a.pair_load = pair_load_.data();
@@ -666,6 +673,7 @@ class CudaEngine final : public DemEngine {
     b.id = id_.data();
     if (step_.history) {
       b.old_index = order_.data();
+      b.old_slot_start = slot_start_.data();
       b.old_partner_id = partner_id_old_.data();
       b.old_neighbour_count = neighbour_count_old_.data();
       b.old_mask = hin.neighbour_mask.data();
@@ -674,6 +682,8 @@ class CudaEngine final : public DemEngine {
       b.new_history = hnew.neighbour.data();
     }
     b.max_neighbours = max_neighbours_;
+    b.slot_start = slot_start_.data();
+    b.reverse_start = slot_start_.data();
     b.neighbours = neighbours_.data();
     b.neighbour_count = neighbour_count_.data();
     b.partner_id = partner_id_.data();
@@ -705,6 +715,7 @@ class CudaEngine final : public DemEngine {
   DeviceArray<double> radius_next_, inv_mass_next_, inv_inertia_next_;  // rebuild scratch
   DeviceArray<std::int32_t> id_, id_next_, neighbours_, partner_id_, partner_id_old_;
   DeviceArray<std::int32_t> neighbour_count_, neighbour_count_old_, reverse_, reverse_count_;
+  DeviceArray<std::int32_t> slot_start_;
   DeviceArray<std::uint32_t> incoming_;
   DeviceArray<double> pair_load_;
   DeviceArray<std::uint32_t> cell_key_, cell_key_sorted_;

@@ -21,13 +21,15 @@ struct Cloud {
   double mono_radius = 0, skin = 0;
   std::vector<std::int32_t> cell_start, cell_end, id;
   int max = 0;  // slots per list
-  std::vector<std::int32_t> neighbours, count, partner, reverse, reverse_count;
+  std::vector<std::int32_t> neighbours, count, partner, reverse, reverse_count, start;
 
-  // Builder arguments over these particles, with empty lists to fill (no history carried).
+  // Builder arguments over these particles, with empty lists to fill (no history carried), in
+  // the GPU's layout: `max` slots per particle.
   NeighbourBuildArgs args() {
     const std::size_t n = x.size(), slots = n * static_cast<std::size_t>(max);
     neighbours.assign(slots, -1), partner.assign(slots, -1), reverse.assign(slots, -1);
-    count.assign(n, 0), reverse_count.assign(n, 0);
+    count.assign(n, 0), reverse_count.assign(n, 0), start.assign(n + 1, 0);
+    for (std::size_t i = 0; i <= n; ++i) start[i] = static_cast<std::int32_t>(i) * max;
     NeighbourBuildArgs b{};
     b.count = static_cast<int>(n);
     b.grid = grid;
@@ -39,6 +41,8 @@ struct Cloud {
     b.cell_end = cell_end.data();
     b.id = id.data();
     b.max_neighbours = max;
+    b.slot_start = start.data();
+    b.reverse_start = start.data();
     b.neighbours = neighbours.data();
     b.neighbour_count = count.data();
     b.partner_id = partner.data();
@@ -116,14 +120,54 @@ TEST_CASE("forward lists hold each close pair once, and reverse lists point back
   int reverse_entries = 0;
   for (int j = 0; j < kCount; ++j) {
     for (int r = 0; r < reverse_count[j]; ++r) {
-      const int s = reverse[j * kMax + r];
-      CHECK(s / kMax < j);
-      CHECK(neighbours[s] == j);
-      CHECK(s % kMax < count[s / kMax]);
+      const int owner = entry_owner(reverse[j * kMax + r]), k = entry_place(reverse[j * kMax + r]);
+      CHECK(owner < j);
+      CHECK(k < count[owner]);
+      CHECK(neighbours[owner * kMax + k] == j);
     }
     reverse_entries += reverse_count[j];
   }
   CHECK(reverse_entries == pairs);
+}
+
+TEST_CASE("lists counted first and written compactly equal the fixed-stride lists") {
+  // The CPU engine's layout: each list starts where the previous (padded) one ends.
+  constexpr int kCount = 300, kMax = 32;
+  Cloud c = sorted_cloud(kCount, 0.02, 0.0025, 0.00075);
+  c.max = kMax;
+  const NeighbourBuildArgs strided = c.args();
+  for (int i = 0; i < kCount; ++i) REQUIRE(build_neighbours_of(i, strided));
+  for (int i = 0; i < kCount; ++i) REQUIRE(build_reverse_of(i, strided));
+
+  std::vector<std::int32_t> count(kCount), reverse_count(kCount), start(kCount + 1, 0),
+      reverse_start(kCount + 1, 0);
+  NeighbourBuildArgs b = strided;
+  b.neighbours = nullptr, b.reverse = nullptr;
+  b.neighbour_count = count.data(), b.reverse_count = reverse_count.data();
+  b.slot_start = start.data(), b.reverse_start = reverse_start.data();
+  for (int i = 0; i < kCount; ++i) REQUIRE(build_neighbours_of(i, b));  // counts only
+  for (int i = 0; i < kCount; ++i) start[i + 1] = start[i] + padded(count[i]);
+  std::vector<std::int32_t> neighbours(static_cast<std::size_t>(start[kCount]), -1),
+      partner(neighbours.size(), -1);
+  b.neighbours = neighbours.data(), b.partner_id = partner.data();
+  for (int i = 0; i < kCount; ++i) REQUIRE(build_neighbours_of(i, b));
+  for (int i = 0; i < kCount; ++i) REQUIRE(build_reverse_of(i, b));  // counts only
+  for (int i = 0; i < kCount; ++i) reverse_start[i + 1] = reverse_start[i] + reverse_count[i];
+  std::vector<std::int32_t> reverse(static_cast<std::size_t>(reverse_start[kCount]), -1);
+  b.reverse = reverse.data();
+  for (int i = 0; i < kCount; ++i) REQUIRE(build_reverse_of(i, b));
+
+  CHECK(count == c.count);
+  CHECK(reverse_count == c.reverse_count);
+  CHECK(start[kCount] < kCount * kMax / 4);  // compact: far fewer slots than the bound
+  for (int i = 0; i < kCount; ++i) {
+    CAPTURE(i);
+    for (int k = 0; k < padded(count[i]); ++k)
+      CHECK(neighbours[start[i] + k] == c.neighbours[i * kMax + k]);
+    for (int k = 0; k < count[i]; ++k) CHECK(partner[start[i] + k] == c.partner[i * kMax + k]);
+    for (int r = 0; r < reverse_count[i]; ++r)
+      CHECK(reverse[reverse_start[i] + r] == c.reverse[i * kMax + r]);
+  }
 }
 
 // Two particles that stay in contact across a rebuild. `swap`: the cell sort exchanges them, so
@@ -148,6 +192,7 @@ std::vector<double> carried_history(bool swap, bool live) {
   c.max = kMax;
   NeighbourBuildArgs b = c.args();
   b.old_index = old_index.data();
+  b.old_slot_start = c.start.data();
   b.old_partner_id = old_partner.data();
   b.old_neighbour_count = old_count.data();
   b.old_mask = old_mask.data();

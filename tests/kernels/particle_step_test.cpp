@@ -158,7 +158,7 @@ void check_touching_slots(bool polydisperse) {
   for (int i = 0; i < kCount; ++i) {
     count[i] = i % (kMax + 1);  // every list length, 0 to kMax
     for (int k = 0; k < count[i]; ++k) neighbours[i * kMax + k] = (i + 1 + 3 * k) % kCount;
-    pad_slots(i, count[i], kMax, neighbours.data());
+    pad_slots(neighbours.data() + i * kMax, count[i], i);
   }
   ParticleStepArgs a{};
   a.in.x = x.data(), a.in.y = y.data(), a.in.z = z.data();
@@ -166,7 +166,9 @@ void check_touching_slots(bool polydisperse) {
   a.mono_radius = 0.004;
   a.neighbours = neighbours.data();
   a.neighbour_count = count.data();
-  a.max_neighbours = kMax;
+  std::vector<std::int32_t> start(kCount + 1);
+  for (int i = 0; i <= kCount; ++i) start[i] = i * kMax;
+  a.slot_start = start.data();
   int contacts = 0;
   for (int i = 0; i < kCount; ++i) {
     std::uint64_t expected = 0;

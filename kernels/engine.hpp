@@ -32,6 +32,10 @@ struct EngineConfig {
   double dt = 0;                         // s
   double skin = 0;                       // m, Verlet skin (0 = 0.15 x smallest diameter)
   std::vector<ParticleState> particles;  // initial state, world frame
+  // A step may be computed again before accept() (tight coupling): the state then stays
+  // double buffered. Otherwise the CPU engine advances it in place, which saves the memory
+  // traffic of a second copy.
+  bool recompute = false;
 };
 
 using StepTotals = ParticleContribution;
@@ -98,8 +102,10 @@ class DemEngine {
  public:
   virtual ~DemEngine() = default;
   // Computes the step t_n -> t_n + dt with the container at `container` (its state at t_n)
-  // into the back buffer and returns the totals (the force on the container is the one at
-  // t_n). Calling it again before accept() recomputes the same step (tight coupling).
+  // and returns the totals (the force on the container is the one at t_n). With
+  // EngineConfig::recompute, into the back buffer, and calling it again before accept()
+  // recomputes the same step (tight coupling); without it the state may advance in place, so
+  // each compute() must be followed by accept().
   virtual const StepTotals& compute(const ContainerKinematics& container, double dt) = 0;
   virtual void accept() = 0;  // the computed step becomes the current state
   virtual int count() const = 0;

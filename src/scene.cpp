@@ -228,6 +228,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     e.rotating = deck.structure.kind == StructureKind::beam;  // follows the node's slope
     if (deck.gravity && norm(*deck.gravity) > 0) e.gravity = deck.gravity;
     e.contact = params;
+    e.recompute = deck.coupling.scheme == CouplingScheme::tight;  // iterates each step
     const double r_max = *std::max_element(e.radius.begin(), e.radius.end());
     const double smallest_extent =
         2 * std::min({e.geometry.half_size.x, e.geometry.half_size.y, e.geometry.half_size.z});

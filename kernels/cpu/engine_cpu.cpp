@@ -90,7 +90,8 @@ class CpuEngine final : public DemEngine {
     max_neighbours_ = neighbour_slots(r_min_, r_max_, skin_);
     check_particle_count(count_, max_neighbours_);
     const std::size_t n = static_cast<std::size_t>(count_);
-    for (auto& s : state_) s.resize(n);
+    state_[0].resize(n);
+    if (c.recompute) state_[1].resize(n);  // the back buffer
     radius_ = c.radius;
     inv_mass_.resize(n);
     inv_inertia_.resize(n);
@@ -147,7 +148,8 @@ class CpuEngine final : public DemEngine {
   }
 
   void accept() override {
-    current_ ^= 1;
+    if (config_.recompute) current_ ^= 1;
+    history_current_ ^= 1;
     if (lists_expired(travel_, totals_.speed_sq, dt_, skin_)) needs_rebuild_ = true;
   }
 
@@ -206,7 +208,7 @@ class CpuEngine final : public DemEngine {
     for (int k = 0; k < 9; ++k) out[names[k]] = *s.all[k];
     out["id"].assign(id_.begin(), id_.end());
     out["radius"] = radius_;
-    const HistoryBuffer& h = history_[current_];
+    const HistoryBuffer& h = history_[history_current_];
     // The checkpoint layout: max_neighbours_ slots per particle (see flat_reverse()).
     const std::size_t slots = static_cast<std::size_t>(count_) * max_neighbours_;
     std::vector<std::int32_t> neighbours(slots, -1), partner(slots, -1), reverse(slots, -1);
@@ -269,7 +271,7 @@ class CpuEngine final : public DemEngine {
     to_int(get("id"), id_);
     radius_ = get("radius");
     set_mass_properties();
-    HistoryBuffer& h = history_[current_];
+    HistoryBuffer& h = history_[history_current_];
     h.wall = get("wall_history");
     to_int(get("wall_mask"), h.wall_mask);
     const auto& lo = get("mask_lo");
@@ -330,9 +332,12 @@ class CpuEngine final : public DemEngine {
 
   ParticleStepArgs args(const ContainerKinematics& container, double dt) {
     StateBuffer& in = state_[current_];
-    StateBuffer& out = state_[current_ ^ 1];
-    HistoryBuffer& hin = history_[current_];
-    HistoryBuffer& hout = history_[current_ ^ 1];
+    // In place without recompute. Only the particle pass writes the state, each particle its
+    // own. On several threads a barrier separates it from the pair pass; on one, a block's
+    // particle pass follows its pairs, and later pairs read only particles of higher index.
+    StateBuffer& out = state_[config_.recompute ? current_ ^ 1 : current_];
+    HistoryBuffer& hin = history_[history_current_];
+    HistoryBuffer& hout = history_[history_current_ ^ 1];
     ParticleStepArgs a = scene_args_;
     a.dt = dt;
     a.container = container;
@@ -380,8 +385,8 @@ class CpuEngine final : public DemEngine {
     permute(radius_, order);
     permute(inv_mass_, order);
     permute(inv_inertia_, order);
-    HistoryBuffer& hin = history_[current_];
-    HistoryBuffer& scratch = history_[current_ ^ 1];
+    HistoryBuffer& hin = history_[history_current_];
+    HistoryBuffer& scratch = history_[history_current_ ^ 1];
     permute(hin.wall, order, 3 * kWallSlots);
     permute(hin.wall_mask, order);
 
@@ -472,7 +477,8 @@ class CpuEngine final : public DemEngine {
 
   EngineConfig config_;
   ParticleStepArgs scene_args_ = scene_step_args(config_);
-  int count_ = 0, threads_ = 1, max_neighbours_ = 1, current_ = 0;
+  int count_ = 0, threads_ = 1, max_neighbours_ = 1;
+  int current_ = 0, history_current_ = 0;  // the front buffers
   double r_min_ = 0, r_max_ = 0, skin_ = 0;
   double dt_ = 0, travel_ = 0;  // last step size; drift bound since the last build (m)
   StateBuffer state_[2];

@@ -2,6 +2,7 @@
 // or CUDA) and the kernel variant are chosen once, when the engine is made.
 #pragma once
 
+#include <algorithm>
 #include <map>
 #include <memory>
 #include <string>
@@ -96,6 +97,15 @@ inline void check_particle_count(int count, int max_neighbours) {
                           std::to_string(max_neighbours) +
                           " neighbour slots each are more than a DEM engine indexes (at most " +
                           std::to_string(kMaxParticles) + " particles and 2^31 slots)");
+}
+
+// A particle touches at most one wall per container axis (kMaxWallContacts) only if it is
+// narrower than the container; decks are checked with a clearer message before this.
+constexpr int kMaxWallContacts = 3;
+inline void check_fits(const ContainerGeometry& g, double r_max) {
+  if (2 * r_max >= 2 * std::min({g.half_size.x, g.half_size.y, g.half_size.z}))
+    throw SimulationError("particle diameter " + std::to_string(2 * r_max) +
+                          " m does not fit in the container");
 }
 
 class DemEngine {

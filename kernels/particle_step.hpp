@@ -206,54 +206,64 @@ PDSIM_HD void raise_flag(std::uint32_t* flag) {
 #endif
 }
 
-// Pair pass, contacts of particle i over the forward slots set in `touching`: computes each
-// pair's loads into its slot and marks the partner. The heavy contact paths are out of line on
-// the CPU (PDSIM_COLD) and reread the particle's state and body (L1 hits; what they do not use
-// compiles away): passing the body in made the hot loop store it for every particle (+5
-// instructions per particle-step, callgrind).
+// The contact of particle i with the partner in its forward slot s (`had`: the slot holds
+// history): the pair's loads into the slot, its history into the output, its dissipation into
+// the sums. One function for the CUDA threads' loop below and the CPU's SIMD batches.
 template <class V>
-PDSIM_COLD void pair_contacts(int i, std::uint64_t touching, const ParticleStepArgs& a,
-                              ParticleContribution& sum) {
+PDSIM_HD void pair_contact(int i, int s, bool had, const ParticleStepArgs& a,
+                           double& dissipated_normal, double& dissipated_tangential) {
   const Body b = body<V>(i, a);
-  const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
+  const int j = a.neighbours[s];
+  const Vec3 d{a.in.x[i] - a.in.x[j], a.in.y[i] - a.in.y[j], a.in.z[i] - a.in.z[j]};
+  double radius_j, mass_eff;
+  if constexpr (V::kPolydisperse) {
+    radius_j = a.radius[j];
+    mass_eff = 1.0 / (b.inv_mass + a.inv_mass[j]);
+  } else {
+    radius_j = b.radius;
+    mass_eff = 0.5 * b.mass;
+  }
+  const double reach = b.radius + radius_j;
+  const double dist = sqrt(dot(d, d));
+  const Vec3 normal = (1.0 / dist) * d;
   const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
   const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
+  const Vec3 vj{a.in.vx[j], a.in.vy[j], a.in.vz[j]};
+  const Vec3 wj{a.in.wx[j], a.in.wy[j], a.in.wz[j]};
+  const Vec3 vrel = v - vj - cross(b.radius * w + radius_j * wj, normal);
+  // Read unconditionally (every slot holds finite doubles) and then selected: a masked load
+  // would keep GCC from vectorising the CPU batches.
+  Vec3 xi{};
+  if constexpr (V::Tangential::kHistory) {
+    xi = load3(a.history.neighbour_in, s);
+    if (!had) xi = Vec3{};
+  }
+  // The slot test and this distance may round differently (FMA contraction): an overlap
+  // of a few ulp below zero is zero, not a NaN in the Hertz root.
+  const auto out = contact<V>(max_of(reach - dist, 0.0), normal, vrel, w - wj, b.radius, radius_j,
+                              b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
+                              dissipated_normal, dissipated_tangential);
+  if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, s, xi);
+  // Indexed from pair_load itself, which GCC can turn into scatter stores.
+  const int load = pair_doubles<V>() / 3 * s;
+  store3(a.pair_load, load, out.force);
+  store3(a.pair_load, load + 1, out.torque);
+  if constexpr (pair_doubles<V>() == 9) store3(a.pair_load, load + 2, out.partner_torque);
+}
+
+// Pair pass, contacts of particle i over the forward slots set in `touching` (CUDA): each
+// pair's loads into its slot, and the partner marked.
+template <class V>
+PDSIM_HD void pair_contacts(int i, std::uint64_t touching, const ParticleStepArgs& a,
+                            ParticleContribution& sum) {
   const int base = a.slot_start[i];
-  std::uint64_t mask_in = 0;
-  if constexpr (V::Tangential::kHistory) mask_in = a.history.neighbour_mask_in[i];
+  std::uint64_t had = 0;
+  if constexpr (V::Tangential::kHistory) had = a.history.neighbour_mask_in[i];
   for (std::uint64_t m = touching; m; m &= m - 1) {
     const int k = lowest_bit(m);
-    const int j = a.neighbours[base + k];
-    const Vec3 d{x.x - a.in.x[j], x.y - a.in.y[j], x.z - a.in.z[j]};
-    double radius_j, mass_eff;
-    if constexpr (V::kPolydisperse) {
-      radius_j = a.radius[j];
-      mass_eff = 1.0 / (b.inv_mass + a.inv_mass[j]);
-    } else {
-      radius_j = b.radius;
-      mass_eff = 0.5 * b.mass;
-    }
-    const double reach = b.radius + radius_j;
-    const double dist = sqrt(dot(d, d));
-    const Vec3 normal = (1.0 / dist) * d;
-    const Vec3 vj{a.in.vx[j], a.in.vy[j], a.in.vz[j]};
-    const Vec3 wj{a.in.wx[j], a.in.wy[j], a.in.wz[j]};
-    const Vec3 vrel = v - vj - cross(b.radius * w + radius_j * wj, normal);
-    Vec3 xi{};
-    if constexpr (V::Tangential::kHistory) {
-      if (mask_in >> k & 1u) xi = load3(a.history.neighbour_in, base + k);
-    }
-    // The slot test and this distance may round differently (FMA contraction): an overlap
-    // of a few ulp below zero is zero, not a NaN in the Hertz root.
-    const auto out = contact<V>(max_of(reach - dist, 0.0), normal, vrel, w - wj, b.radius, radius_j,
-                                b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
-                                sum.dissipated_normal, sum.dissipated_tangential);
-    if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, base + k, xi);
-    double* slot = a.pair_load + pair_doubles<V>() * (base + k);
-    store3(slot, 0, out.force);
-    store3(slot, 1, out.torque);
-    if constexpr (pair_doubles<V>() == 9) store3(slot, 2, out.partner_torque);
-    raise_flag(a.incoming + j);
+    pair_contact<V>(i, base + k, had >> k & 1u, a, sum.dissipated_normal,
+                    sum.dissipated_tangential);
+    raise_flag(a.incoming + a.neighbours[base + k]);
   }
 }
 
@@ -294,46 +304,23 @@ PDSIM_HD void container_offset(Vec3 x, const ParticleStepArgs& a, Vec3& offset, 
              dot(offset, a.container.axis_z)};
 }
 
-// Contacts of particle i with the container walls, for a particle that passed the bounding
-// test. Adds the reaction on the container to `sum`.
-template <class V>
-PDSIM_COLD Load wall_contacts(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
-  const Body b = body<V>(i, a);
-  const double radius = b.radius;
+// The walls that particle i (near them: it passed the bounding test) touches: f(slot, gap,
+// normal) for each in slot order, `normal` in the world frame, pointing into the container.
+// Flags a centre further than one radius outside the container.
+template <class V, class F>
+PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribution& sum, F&& f) {
+  const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
   Vec3 offset, local;
   container_offset<V>({a.in.x[i], a.in.y[i], a.in.z[i]}, a, offset, local);
-  const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
-  const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
   const ContainerKinematics& box = a.container;
   const Vec3 h = a.geometry.half_size;
-  Vec3 v_wall_rel = v - box.velocity;
-  if constexpr (V::kRotating) v_wall_rel -= cross(box.angular_velocity, offset);
-  Load load;
-  std::uint8_t mask_in = 0, mask_out = 0;
-  if constexpr (V::Tangential::kHistory) mask_in = a.history.wall_mask_in[i];
   auto wall = [&](int slot, double gap, Vec3 local_normal) {
     if (gap >= radius) return;
     Vec3 normal = local_normal;
     if constexpr (V::kRotating)
       normal =
           local_normal.x * box.axis_x + local_normal.y * box.axis_y + local_normal.z * box.axis_z;
-    Vec3 xi{};
-    if constexpr (V::Tangential::kHistory) {
-      if (mask_in >> slot & 1u) xi = load3(a.history.wall_in, i * kWallSlots + slot);
-    }
-    const Vec3 vrel = v_wall_rel - cross(radius * w, normal);
-    const auto out =
-        contact<V>(radius - gap, normal, vrel, w, radius, 0.0, radius, b.mass, true, &xi, a.dt,
-                   a.contact, sum.dissipated_normal, sum.dissipated_tangential);
-    if constexpr (V::Tangential::kHistory) {
-      store3(a.history.wall_out, i * kWallSlots + slot, xi);
-      mask_out = static_cast<std::uint8_t>(mask_out | (1u << slot));
-    }
-    load.force += out.force;
-    load.torque += out.torque;
-    sum.wall_force -= out.force;
-    // The force acts on the wall at the foot of the normal through the particle centre.
-    if constexpr (V::kRotating) sum.wall_torque -= cross(offset - gap * normal, out.force);
+    f(slot, gap, normal);
   };
   // A centre further than one radius outside the container stops the run.
   auto escaped = [&](double beyond) {
@@ -364,7 +351,63 @@ PDSIM_COLD Load wall_contacts(int i, const ParticleStepArgs& a, ParticleContribu
     wall(5, h.z - local.z, {0, 0, -1});
     escaped(fabs(local.z) - h.z);
   }
-  if constexpr (V::Tangential::kHistory) a.history.wall_mask_out[i] = mask_out;
+}
+
+// The contact of particle i with wall `slot` at `gap` (`had`: the slot holds history): its
+// history into the output, its dissipation into the sums; returns its loads on the particle.
+// One function for the CUDA threads and the CPU's SIMD batches.
+template <class V>
+PDSIM_HD Load wall_contact(int i, int slot, double gap, Vec3 normal, bool had,
+                           const ParticleStepArgs& a, double& dissipated_normal,
+                           double& dissipated_tangential) {
+  const Body b = body<V>(i, a);
+  const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
+  const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
+  Vec3 v_wall_rel = v - a.container.velocity;
+  if constexpr (V::kRotating) {
+    const Vec3 offset = Vec3{a.in.x[i], a.in.y[i], a.in.z[i]} - a.container.position;
+    v_wall_rel -= cross(a.container.angular_velocity, offset);
+  }
+  Vec3 xi{};  // read unconditionally, as in pair_contact()
+  if constexpr (V::Tangential::kHistory) {
+    xi = load3(a.history.wall_in, i * kWallSlots + slot);
+    if (!had) xi = Vec3{};
+  }
+  const Vec3 vrel = v_wall_rel - cross(b.radius * w, normal);
+  const auto out = contact<V>(b.radius - gap, normal, vrel, w, b.radius, 0.0, b.radius, b.mass,
+                              true, &xi, a.dt, a.contact, dissipated_normal, dissipated_tangential);
+  if constexpr (V::Tangential::kHistory) store3(a.history.wall_out, i * kWallSlots + slot, xi);
+  return {out.force, out.torque};
+}
+
+// The reaction of a wall contact's `force` on the container: force and torque about its centre
+// (the force acts at the foot of the normal through the particle centre).
+template <class V>
+PDSIM_HD void add_wall_reaction(int i, double gap, Vec3 normal, Vec3 force,
+                                const ParticleStepArgs& a, ParticleContribution& sum) {
+  sum.wall_force -= force;
+  if constexpr (V::kRotating) {
+    const Vec3 offset = Vec3{a.in.x[i], a.in.y[i], a.in.z[i]} - a.container.position;
+    sum.wall_torque -= cross(offset - gap * normal, force);
+  }
+}
+
+// Contacts of particle i with the container walls, for a particle that passed the bounding
+// test (CUDA). Adds the reaction on the container to `sum`.
+template <class V>
+PDSIM_HD Load wall_contacts(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
+  Load load;
+  std::uint8_t had = 0, touched = 0;
+  if constexpr (V::Tangential::kHistory) had = a.history.wall_mask_in[i];
+  touching_walls<V>(i, a, sum, [&](int slot, double gap, Vec3 normal) {
+    const Load l = wall_contact<V>(i, slot, gap, normal, had >> slot & 1u, a, sum.dissipated_normal,
+                                   sum.dissipated_tangential);
+    touched = static_cast<std::uint8_t>(touched | (1u << slot));
+    load.force += l.force;
+    load.torque += l.torque;
+    add_wall_reaction<V>(i, gap, normal, l.force, a, sum);
+  });
+  if constexpr (V::Tangential::kHistory) a.history.wall_mask_out[i] = touched;
   return load;
 }
 
@@ -420,21 +463,14 @@ PDSIM_HD std::uint64_t touching_slots(int i, Vec3 x, double radius, const Partic
   return touching;
 }
 
-// The pair pass takes the step arguments twice: `a` for the hot path and `shared`, the same
-// values, for the out-of-line contact paths. A copy of `a` private to the loop then never
-// escapes, so the compiler keeps its fields in registers instead of reloading them after
-// every store (on CUDA both are the kernel's argument).
-
-// Pair pass of particle i: which forward slots touch (most do not, so this test is kept
-// minimal), and the loads of those pairs. Dissipation goes to `sum`.
+// Pair pass of particle i (one CUDA thread): which forward slots touch (most do not, so this
+// test is kept minimal), and the loads of those pairs. Dissipation goes to `sum`.
 template <class V>
-PDSIM_HOT void pair_pass(int i, const ParticleStepArgs& a, const ParticleStepArgs& shared,
-                         ParticleContribution& sum) {
+PDSIM_HD void pair_pass(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
   const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
-  const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
-  const std::uint64_t touching = touching_slots<V>(i, x, radius, a);
+  const std::uint64_t touching = touching_slots<V>(i, {a.in.x[i], a.in.y[i], a.in.z[i]}, radius, a);
   a.history.neighbour_mask_out[i] = touching;
-  if (touching) pair_contacts<V>(i, touching, shared, sum);
+  if (touching) pair_contacts<V>(i, touching, a, sum);
 }
 
 // Bounding test of particle i against the container walls (a centre outside the container
@@ -468,8 +504,8 @@ PDSIM_HOT int load_kinds(int i, const ParticleStepArgs& a) {
 // Loads of particle i of the given kinds (not 0): its pairs' (in a fixed order) and the
 // walls'. Wall contacts add their reactions to `sum`.
 template <class V>
-PDSIM_COLD Load contact_loads(int i, int kinds, const ParticleStepArgs& a,
-                              ParticleContribution& sum) {
+PDSIM_HD Load contact_loads(int i, int kinds, const ParticleStepArgs& a,
+                            ParticleContribution& sum) {
   Load load;
   if (kinds & kPairLoads) load = pair_loads<V>(i, a);
   if (kinds & kWallLoads) {

@@ -43,12 +43,94 @@ void permute(std::vector<T>& a, const std::vector<std::int32_t>& order, std::siz
   a.swap(b);
 }
 
-// Particle pass over particles [begin, end) (at most kBlock), in three loops so that the
-// common case runs in SIMD lanes: which particles have loads (SIMD), those loads (out of line,
-// one particle at a time), then every particle's integration (SIMD). The vector sums are
-// reduced in an order fixed by the block, not by the threads.
+// A block's contacts, listed by scalar loops and then computed in SIMD lanes: the contact laws
+// (roots, divisions, the friction cone) are the bulk of a step, and one contact at a time they
+// are chains of dependent long-latency instructions. Entries are in particle and slot order.
+struct ContactBatch {
+  // Pairs: owner and forward slot. Walls: particle and wall slot.
+  std::vector<std::int32_t> particle, slot;
+  std::vector<std::uint8_t> had;       // the slot holds history
+  std::vector<double> gap, normal[3];  // walls
+  std::vector<double> load[6];         // walls: force and torque on the particle
+  void reserve(std::size_t pairs, std::size_t walls) {
+    const std::size_t n = std::max(pairs, walls);
+    particle.resize(n);
+    slot.resize(n);
+    had.resize(n);
+    for (auto* v : {&gap, &normal[0], &normal[1], &normal[2], &load[0], &load[1], &load[2],
+                    &load[3], &load[4], &load[5]})
+      v->resize(walls);
+  }
+  std::size_t bytes() const {
+    return particle.size() * (2 * sizeof(std::int32_t) + 1) + gap.size() * 10 * sizeof(double);
+  }
+};
+
+// Pair pass over particles [begin, end): which forward slots touch, listed, then their
+// contacts in SIMD lanes.
 template <class V>
-void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, StepTotals& total) {
+void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, ContactBatch& batch,
+                     StepTotals& total) {
+  const ParticleStepArgs a = shared;  // private: its pointers stay in registers
+  std::int32_t* const particle = batch.particle.data();
+  std::int32_t* const slot = batch.slot.data();
+  std::uint8_t* const had = batch.had.data();
+  int pairs = 0;
+  for (int i = begin; i < end; ++i) {
+    const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
+    const std::uint64_t touching =
+        touching_slots<V>(i, {a.in.x[i], a.in.y[i], a.in.z[i]}, radius, a);
+    a.history.neighbour_mask_out[i] = touching;
+    if (!touching) continue;
+    const int base = a.slot_start[i];
+    std::uint64_t with_history = 0;
+    if constexpr (V::Tangential::kHistory) with_history = a.history.neighbour_mask_in[i];
+    for (std::uint64_t m = touching; m; m &= m - 1) {
+      const int k = lowest_bit(m);
+      particle[pairs] = i;
+      slot[pairs] = base + k;
+      had[pairs] = static_cast<std::uint8_t>(with_history >> k & 1u);
+      raise_flag(a.incoming + a.neighbours[base + k]);
+      ++pairs;
+    }
+  }
+  double dissipated_normal = 0, dissipated_tangential = 0;
+#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
+  for (int e = 0; e < pairs; ++e)
+    pair_contact<V>(particle[e], slot[e], had[e] != 0, a, dissipated_normal, dissipated_tangential);
+  total.dissipated_normal += dissipated_normal;
+  total.dissipated_tangential += dissipated_tangential;
+}
+
+// Lists the walls particle i touches in `batch` from entry `walls`; returns the new count.
+template <class V>
+PDSIM_COLD int list_walls(int i, const ParticleStepArgs& a, ContactBatch& batch, int walls,
+                          StepTotals& sum) {
+  std::uint8_t with_history = 0, touched = 0;
+  if constexpr (V::Tangential::kHistory) with_history = a.history.wall_mask_in[i];
+  touching_walls<V>(i, a, sum, [&](int slot, double gap, Vec3 normal) {
+    batch.particle[walls] = i;
+    batch.slot[walls] = slot;
+    batch.had[walls] = static_cast<std::uint8_t>(with_history >> slot & 1u);
+    batch.gap[walls] = gap;
+    batch.normal[0][walls] = normal.x;
+    batch.normal[1][walls] = normal.y;
+    batch.normal[2][walls] = normal.z;
+    touched = static_cast<std::uint8_t>(touched | (1u << slot));
+    ++walls;
+  });
+  if constexpr (V::Tangential::kHistory) a.history.wall_mask_out[i] = touched;
+  return walls;
+}
+
+// Particle pass over particles [begin, end) (at most kBlock), so that the common case runs in
+// SIMD lanes: which particles have loads (SIMD), the wall contacts (listed, then SIMD), the
+// loads of the particles that have some (out of line, one at a time: pairs, then walls in slot
+// order), then every particle's integration (SIMD). The vector sums are reduced in an order
+// fixed by the block, not by the threads.
+template <class V>
+void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, ContactBatch& batch,
+                         StepTotals& total) {
   const ParticleStepArgs a = shared;  // private: its pointers stay in registers
   const int n = end - begin;
   alignas(64) double load[6][kBlock];
@@ -60,9 +142,41 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, Ste
     for (auto& component : load) component[k] = 0;
   }
   StepTotals sum;  // wall reactions and dissipation, then the integration's sums
-  for (int k = 0; k < n; ++k) {
+  int walls = 0;
+  for (int k = 0; k < n; ++k)
+    if (kinds[k] & kWallLoads) walls = list_walls<V>(begin + k, shared, batch, walls, sum);
+  {
+    const std::int32_t* const particle = batch.particle.data();
+    const std::int32_t* const slot = batch.slot.data();
+    const std::uint8_t* const had = batch.had.data();
+    const double *const gap = batch.gap.data(), *const nx = batch.normal[0].data(),
+                        *const ny = batch.normal[1].data(), *const nz = batch.normal[2].data();
+    double* const out[6] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
+                            batch.load[3].data(), batch.load[4].data(), batch.load[5].data()};
+    double dissipated_normal = 0, dissipated_tangential = 0;
+#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
+    for (int e = 0; e < walls; ++e) {
+      const Load l = wall_contact<V>(particle[e], slot[e], gap[e], {nx[e], ny[e], nz[e]},
+                                     had[e] != 0, a, dissipated_normal, dissipated_tangential);
+      out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
+      out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
+    }
+    sum.dissipated_normal += dissipated_normal;
+    sum.dissipated_tangential += dissipated_tangential;
+  }
+  for (int k = 0, e = 0; k < n; ++k) {
     if (!kinds[k]) continue;
-    const Load l = contact_loads<V>(begin + k, kinds[k], shared, sum);
+    const int i = begin + k;
+    Load l;
+    if (kinds[k] & kPairLoads) l = pair_loads<V>(i, shared);
+    for (; e < walls && batch.particle[e] == i; ++e) {
+      const Vec3 force{batch.load[0][e], batch.load[1][e], batch.load[2][e]};
+      l.force += force;
+      l.torque += Vec3{batch.load[3][e], batch.load[4][e], batch.load[5][e]};
+      add_wall_reaction<V>(i, batch.gap[e],
+                           {batch.normal[0][e], batch.normal[1][e], batch.normal[2][e]}, force,
+                           shared, sum);
+    }
     load[0][k] = l.force.x, load[1][k] = l.force.y, load[2][k] = l.force.z;
     load[3][k] = l.torque.x, load[4][k] = l.torque.y, load[5][k] = l.torque.z;
   }
@@ -89,6 +203,7 @@ class CpuEngine final : public DemEngine {
     skin_ = default_skin(r_min_, c.skin);
     max_neighbours_ = neighbour_slots(r_min_, r_max_, skin_);
     check_particle_count(count_, max_neighbours_);
+    check_fits(c.geometry, r_max_);
     const std::size_t n = static_cast<std::size_t>(count_);
     state_[0].resize(n);
     if (c.recompute) state_[1].resize(n);  // the back buffer
@@ -110,17 +225,14 @@ class CpuEngine final : public DemEngine {
     auto range = [&](int b) {
       return std::make_pair(b * kBlock, std::min(count_, (b + 1) * kBlock));
     };
-    // Each block keeps a private copy of the arguments, so that their pointers can stay in
-    // registers, and the pair pass's sums in its block's total.
-    auto pair_block = [&](int b) {
-      const ParticleStepArgs local = a;
-      StepTotals& sum = block_totals_[static_cast<std::size_t>(b)];
+    // Each thread lists its blocks' contacts in its own batch.
+    auto pair_block = [&](int b, ContactBatch& batch) {
       const auto [begin, end] = range(b);
-      for (int i = begin; i < end; ++i) pair_pass<V>(i, local, a, sum);
+      pair_pass_block<V>(begin, end, a, batch, block_totals_[static_cast<std::size_t>(b)]);
     };
-    auto particle_block = [&](int b) {
+    auto particle_block = [&](int b, ContactBatch& batch) {
       const auto [begin, end] = range(b);
-      particle_pass_block<V>(begin, end, a, block_totals_[static_cast<std::size_t>(b)]);
+      particle_pass_block<V>(begin, end, a, batch, block_totals_[static_cast<std::size_t>(b)]);
     };
     if (blocks == 1 || threads_ == 1) {
       // Small scenes: a parallel region would cost more than it saves. In one thread, a
@@ -129,16 +241,17 @@ class CpuEngine final : public DemEngine {
       // (+3.5 % at 8,000 spheres). Across threads the blocks waiting for another thread's
       // pairs cost more than that (measured -5 % on 2 threads), so they keep two passes.
       for (int b = 0; b < blocks; ++b) {
-        pair_block(b);
-        particle_block(b);
+        pair_block(b, batches_[0]);
+        particle_block(b, batches_[0]);
       }
     } else {
 #pragma omp parallel num_threads(threads_)
       {
+        ContactBatch& batch = batches_[static_cast<std::size_t>(omp_get_thread_num())];
 #pragma omp for schedule(static)
-        for (int b = 0; b < blocks; ++b) pair_block(b);
+        for (int b = 0; b < blocks; ++b) pair_block(b, batch);
 #pragma omp for schedule(static)
-        for (int b = 0; b < blocks; ++b) particle_block(b);
+        for (int b = 0; b < blocks; ++b) particle_block(b, batch);
       }
     }
     totals_ = StepTotals{};
@@ -315,6 +428,7 @@ class CpuEngine final : public DemEngine {
       for (const auto* a : s.all) sum += bytes(*a);
     for (const auto& h : history_)
       sum += bytes(h.neighbour) + bytes(h.wall) + bytes(h.neighbour_mask) + bytes(h.wall_mask);
+    for (const auto& batch : batches_) sum += batch.bytes();
     for (const auto* a : {&id_, &neighbours_, &partner_id_, &neighbour_count_, &slot_start_,
                           &reverse_, &reverse_count_, &reverse_start_})
       sum += bytes(*a);
@@ -456,6 +570,16 @@ class CpuEngine final : public DemEngine {
     for (int i = 0; i < count_; ++i)
       slot_start_[i + 1] = slot_start_[i] + padded(neighbour_count_[i]);
     const auto slots = static_cast<std::size_t>(slot_start_[count_]);
+    // A block lists at most its slots' pairs and kMaxWallContacts walls per particle.
+    std::size_t block_slots = 0;
+    for (int b = 0; b < count_; b += kBlock)
+      block_slots = std::max<std::size_t>(
+          block_slots, slot_start_[std::min(count_, b + kBlock)] - slot_start_[b]);
+    batches_.resize(static_cast<std::size_t>(threads_));
+    for (auto& batch : batches_)
+      if (batch.particle.size() < block_slots || batch.gap.empty())
+        batch.reserve(block_slots + block_slots / 4,
+                      static_cast<std::size_t>(std::min(count_, kBlock)) * kMaxWallContacts);
     grow(neighbours_, slots);
     grow(partner_id_, slots);
     if (V::Tangential::kHistory)
@@ -493,6 +617,7 @@ class CpuEngine final : public DemEngine {
   Grid grid_{};
   bool needs_rebuild_ = true;
   std::vector<StepTotals> block_totals_;
+  std::vector<ContactBatch> batches_;  // one per thread
   StepTotals totals_;
 };
 

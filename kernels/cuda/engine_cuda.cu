@@ -146,7 +146,7 @@ __global__ void __launch_bounds__(kBlock)
   const int t = static_cast<int>(threadIdx.x);
   const int i = static_cast<int>(blockIdx.x) * kBlock + t;
   ParticleContribution c;
-  if (i < args.count) pair_pass<V>(i, args, args, c);
+  if (i < args.count) pair_pass<V>(i, args, c);
   new (part + t) ParticleContribution(c);
   reduce_block(part, t);
   if (t == 0) block_totals[blockIdx.x] = part[0];
@@ -307,6 +307,7 @@ class CudaEngine final : public DemEngine {
     skin_ = default_skin(r_min_, c.skin);
     max_neighbours_ = neighbour_slots(r_min_, r_max_, skin_);
     check_particle_count(count_, max_neighbours_);
+    check_fits(c.geometry, r_max_);
     int device = 0;
     check(cudaGetDevice(&device), "cudaGetDevice");
     cudaDeviceProp prop{};

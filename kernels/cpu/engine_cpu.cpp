@@ -66,6 +66,47 @@ struct ContactBatch {
   }
 };
 
+// The contact laws of a batch's first `pairs` pair entries, in SIMD lanes. Flattened: the laws
+// vectorise only when inlined, which GCC's own heuristics did for some variants and not others.
+template <class V>
+[[gnu::flatten]] void pair_contacts_simd(int pairs, const ContactBatch& batch,
+                                         const ParticleStepArgs& shared, StepTotals& total) {
+  const ParticleStepArgs a = shared;  // private: its pointers stay in registers
+  const std::int32_t* const particle = batch.particle.data();
+  const std::int32_t* const slot = batch.slot.data();
+  const std::uint8_t* const had = batch.had.data();
+  double dissipated_normal = 0, dissipated_tangential = 0;
+#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
+  for (int e = 0; e < pairs; ++e)
+    pair_contact<V>(particle[e], slot[e], had[e] != 0, a, dissipated_normal, dissipated_tangential);
+  total.dissipated_normal += dissipated_normal;
+  total.dissipated_tangential += dissipated_tangential;
+}
+
+// The same for the first `walls` wall entries; their loads go to batch.load.
+template <class V>
+[[gnu::flatten]] void wall_contacts_simd(int walls, ContactBatch& batch,
+                                         const ParticleStepArgs& shared, StepTotals& sum) {
+  const ParticleStepArgs a = shared;
+  const std::int32_t* const particle = batch.particle.data();
+  const std::int32_t* const slot = batch.slot.data();
+  const std::uint8_t* const had = batch.had.data();
+  const double *const gap = batch.gap.data(), *const nx = batch.normal[0].data(),
+                      *const ny = batch.normal[1].data(), *const nz = batch.normal[2].data();
+  double* const out[6] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
+                          batch.load[3].data(), batch.load[4].data(), batch.load[5].data()};
+  double dissipated_normal = 0, dissipated_tangential = 0;
+#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
+  for (int e = 0; e < walls; ++e) {
+    const Load l = wall_contact<V>(particle[e], slot[e], gap[e], {nx[e], ny[e], nz[e]}, had[e] != 0,
+                                   a, dissipated_normal, dissipated_tangential);
+    out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
+    out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
+  }
+  sum.dissipated_normal += dissipated_normal;
+  sum.dissipated_tangential += dissipated_tangential;
+}
+
 // Pair pass over particles [begin, end): which forward slots touch, listed, then their
 // contacts in SIMD lanes.
 template <class V>
@@ -94,12 +135,7 @@ void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, Contact
       ++pairs;
     }
   }
-  double dissipated_normal = 0, dissipated_tangential = 0;
-#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
-  for (int e = 0; e < pairs; ++e)
-    pair_contact<V>(particle[e], slot[e], had[e] != 0, a, dissipated_normal, dissipated_tangential);
-  total.dissipated_normal += dissipated_normal;
-  total.dissipated_tangential += dissipated_tangential;
+  pair_contacts_simd<V>(pairs, batch, shared, total);
 }
 
 // Lists the walls particle i touches in `batch` from entry `walls`; returns the new count.
@@ -145,25 +181,7 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, Con
   int walls = 0;
   for (int k = 0; k < n; ++k)
     if (kinds[k] & kWallLoads) walls = list_walls<V>(begin + k, shared, batch, walls, sum);
-  {
-    const std::int32_t* const particle = batch.particle.data();
-    const std::int32_t* const slot = batch.slot.data();
-    const std::uint8_t* const had = batch.had.data();
-    const double *const gap = batch.gap.data(), *const nx = batch.normal[0].data(),
-                        *const ny = batch.normal[1].data(), *const nz = batch.normal[2].data();
-    double* const out[6] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
-                            batch.load[3].data(), batch.load[4].data(), batch.load[5].data()};
-    double dissipated_normal = 0, dissipated_tangential = 0;
-#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
-    for (int e = 0; e < walls; ++e) {
-      const Load l = wall_contact<V>(particle[e], slot[e], gap[e], {nx[e], ny[e], nz[e]},
-                                     had[e] != 0, a, dissipated_normal, dissipated_tangential);
-      out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
-      out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
-    }
-    sum.dissipated_normal += dissipated_normal;
-    sum.dissipated_tangential += dissipated_tangential;
-  }
+  wall_contacts_simd<V>(walls, batch, shared, sum);
   for (int k = 0, e = 0; k < n; ++k) {
     if (!kinds[k]) continue;
     const int i = begin + k;

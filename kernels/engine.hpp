@@ -102,8 +102,11 @@ inline void check_particle_count(int count, int max_neighbours) {
 // A particle touches at most one wall per container axis (kMaxWallContacts) only if it is
 // narrower than the container; decks are checked with a clearer message before this.
 constexpr int kMaxWallContacts = 3;
+inline double smallest_inner_size(const ContainerGeometry& g) {
+  return 2 * std::min({g.half_size.x, g.half_size.y, g.half_size.z});
+}
 inline void check_fits(const ContainerGeometry& g, double r_max) {
-  if (2 * r_max >= 2 * std::min({g.half_size.x, g.half_size.y, g.half_size.z}))
+  if (2 * r_max >= smallest_inner_size(g))
     throw SimulationError("particle diameter " + std::to_string(2 * r_max) +
                           " m does not fit in the container");
 }

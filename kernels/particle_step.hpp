@@ -4,8 +4,9 @@
 //     pair's slot;
 //  2. particle pass: each particle gathers its pairs' forces in a fixed order (its own slots,
 //     then its reverse list) plus the container walls, and integrates (semi-implicit Euler).
-// State is double buffered: every particle reads t_n and writes t_{n+1}, so a step can be
-// re-run from the same input for tight coupling. No pass writes another particle's sums, so no
+// Only the particle pass writes the state, each particle its own, after every pair that reads it:
+// the CPU engine advances it in place unless tight coupling re-runs a step from the same input
+// (then, like CUDA, it keeps a second buffer). No pass writes another particle's sums, so no
 // atomics add forces, and the result does not depend on the thread count.
 #pragma once
 

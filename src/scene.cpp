@@ -230,8 +230,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     e.contact = params;
     e.recompute = deck.coupling.scheme == CouplingScheme::tight;  // iterates each step
     const double r_max = *std::max_element(e.radius.begin(), e.radius.end());
-    const double smallest_extent =
-        2 * std::min({e.geometry.half_size.x, e.geometry.half_size.y, e.geometry.half_size.z});
+    const double smallest_extent = smallest_inner_size(e.geometry);
     if (2 * r_max >= smallest_extent)
       throw InputError(deck.where(key + ".particles"), key + ".particles",
                        "particle diameter " + format(2 * r_max) +

@@ -52,7 +52,7 @@ struct ContactBatch {
   std::vector<std::uint8_t> had;       // the slot holds history
   std::vector<double> gap, normal[3];  // walls
   std::vector<double> load[6];         // walls: force and torque on the particle
-  void reserve(std::size_t pairs, std::size_t walls) {
+  void resize(std::size_t pairs, std::size_t walls) {
     const std::size_t n = std::max(pairs, walls);
     particle.resize(n);
     slot.resize(n);
@@ -596,8 +596,8 @@ class CpuEngine final : public DemEngine {
     batches_.resize(static_cast<std::size_t>(threads_));
     for (auto& batch : batches_)
       if (batch.particle.size() < block_slots || batch.gap.empty())
-        batch.reserve(block_slots + block_slots / 4,
-                      static_cast<std::size_t>(std::min(count_, kBlock)) * kMaxWallContacts);
+        batch.resize(block_slots + block_slots / 4,
+                     static_cast<std::size_t>(std::min(count_, kBlock)) * kMaxWallContacts);
     grow(neighbours_, slots);
     grow(partner_id_, slots);
     if (V::Tangential::kHistory)

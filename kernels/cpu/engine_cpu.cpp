@@ -14,6 +14,16 @@ namespace pdsim {
 namespace {
 
 constexpr int kBlock = 256;  // particles per reduction block (independent of thread count)
+// Contact batches are padded to whole vector iterations, so that their loops never run a scalar
+// remainder. GCC sizes an iteration by the loop's narrowest type: 32-bit entries in 256-bit
+// vectors (CMakeLists.txt) make 8. A byte-wide entry had made it 64 with AVX-512, and blocks
+// with fewer contacts ran all scalar.
+constexpr int kLanes = 8;
+
+// `n` entries rounded up to whole SIMD vectors.
+constexpr int padded_lanes(int n) {
+  return (n + kLanes - 1) / kLanes * kLanes;
+}
 
 struct StateBuffer {
   std::vector<double> x, y, z, vx, vy, vz, wx, wy, wz;
@@ -49,10 +59,11 @@ void permute(std::vector<T>& a, const std::vector<std::int32_t>& order, std::siz
 struct ContactBatch {
   // Pairs: owner and forward slot. Walls: particle and wall slot.
   std::vector<std::int32_t> particle, slot;
-  std::vector<std::uint8_t> had;       // the slot holds history
+  std::vector<std::int32_t> had;       // the slot holds history (32 bits: see kLanes)
   std::vector<double> gap, normal[3];  // walls
   std::vector<double> load[6];         // walls: force and torque on the particle
   void resize(std::size_t pairs, std::size_t walls) {
+    pairs += kLanes, walls += kLanes;  // room for the padding
     const std::size_t n = std::max(pairs, walls);
     particle.resize(n);
     slot.resize(n);
@@ -62,23 +73,42 @@ struct ContactBatch {
       v->resize(walls);
   }
   std::size_t bytes() const {
-    return particle.size() * (2 * sizeof(std::int32_t) + 1) + gap.size() * 10 * sizeof(double);
+    return particle.size() * 3 * sizeof(std::int32_t) + gap.size() * 10 * sizeof(double);
+  }
+  // Entries [n, padded_lanes(n)) copy entry n - 1 (walls also its gap and normal): computing a
+  // contact again reads the same input and writes the same history and loads. Returns the
+  // padded count.
+  int pad(int n, bool walls) {
+    const int end = padded_lanes(n);
+    for (int e = n; e < end; ++e) {
+      particle[e] = particle[n - 1], slot[e] = slot[n - 1], had[e] = had[n - 1];
+      if (walls)
+        for (auto* v : {&gap, &normal[0], &normal[1], &normal[2]}) (*v)[e] = (*v)[n - 1];
+    }
+    return end;
   }
 };
 
-// The contact laws of a batch's first `pairs` pair entries, in SIMD lanes. Flattened: the laws
-// vectorise only when inlined, which GCC's own heuristics did for some variants and not others.
+// The contact laws of a batch's first `pairs` pair entries, in SIMD lanes, over the padded
+// entries (the padding's dissipation is not counted). Flattened: the laws vectorise only when
+// inlined, which GCC's own heuristics did for some variants and not others.
 template <class V>
-[[gnu::flatten]] void pair_contacts_simd(int pairs, const ContactBatch& batch,
+[[gnu::flatten]] void pair_contacts_simd(int pairs, ContactBatch& batch,
                                          const ParticleStepArgs& shared, StepTotals& total) {
+  if (pairs == 0) return;
+  const int end = batch.pad(pairs, false);
   const ParticleStepArgs a = shared;  // private: its pointers stay in registers
   const std::int32_t* const particle = batch.particle.data();
   const std::int32_t* const slot = batch.slot.data();
-  const std::uint8_t* const had = batch.had.data();
+  const std::int32_t* const had = batch.had.data();
   double dissipated_normal = 0, dissipated_tangential = 0;
 #pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
-  for (int e = 0; e < pairs; ++e)
-    pair_contact<V>(particle[e], slot[e], had[e] != 0, a, dissipated_normal, dissipated_tangential);
+  for (int e = 0; e < end; ++e) {
+    double normal = 0, tangential = 0;
+    pair_contact<V>(particle[e], slot[e], had[e] != 0, a, normal, tangential);
+    dissipated_normal += e < pairs ? normal : 0.0;
+    dissipated_tangential += e < pairs ? tangential : 0.0;
+  }
   total.dissipated_normal += dissipated_normal;
   total.dissipated_tangential += dissipated_tangential;
 }
@@ -87,19 +117,24 @@ template <class V>
 template <class V>
 [[gnu::flatten]] void wall_contacts_simd(int walls, ContactBatch& batch,
                                          const ParticleStepArgs& shared, StepTotals& sum) {
+  if (walls == 0) return;
+  const int end = batch.pad(walls, true);
   const ParticleStepArgs a = shared;
   const std::int32_t* const particle = batch.particle.data();
   const std::int32_t* const slot = batch.slot.data();
-  const std::uint8_t* const had = batch.had.data();
+  const std::int32_t* const had = batch.had.data();
   const double *const gap = batch.gap.data(), *const nx = batch.normal[0].data(),
                       *const ny = batch.normal[1].data(), *const nz = batch.normal[2].data();
   double* const out[6] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
                           batch.load[3].data(), batch.load[4].data(), batch.load[5].data()};
   double dissipated_normal = 0, dissipated_tangential = 0;
 #pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
-  for (int e = 0; e < walls; ++e) {
+  for (int e = 0; e < end; ++e) {
+    double normal = 0, tangential = 0;
     const Load l = wall_contact<V>(particle[e], slot[e], gap[e], {nx[e], ny[e], nz[e]}, had[e] != 0,
-                                   a, dissipated_normal, dissipated_tangential);
+                                   a, normal, tangential);
+    dissipated_normal += e < walls ? normal : 0.0;
+    dissipated_tangential += e < walls ? tangential : 0.0;
     out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
     out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
   }
@@ -115,7 +150,7 @@ void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, Contact
   const ParticleStepArgs a = shared;  // private: its pointers stay in registers
   std::int32_t* const particle = batch.particle.data();
   std::int32_t* const slot = batch.slot.data();
-  std::uint8_t* const had = batch.had.data();
+  std::int32_t* const had = batch.had.data();
   int pairs = 0;
   for (int i = begin; i < end; ++i) {
     const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
@@ -130,7 +165,7 @@ void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, Contact
       const int k = lowest_bit(m);
       particle[pairs] = i;
       slot[pairs] = base + k;
-      had[pairs] = static_cast<std::uint8_t>(with_history >> k & 1u);
+      had[pairs] = static_cast<std::int32_t>(with_history >> k & 1u);
       raise_flag(a.incoming + a.neighbours[base + k]);
       ++pairs;
     }
@@ -147,7 +182,7 @@ PDSIM_COLD int list_walls(int i, const ParticleStepArgs& a, ContactBatch& batch,
   touching_walls<V>(i, a, sum, [&](int slot, double gap, Vec3 normal) {
     batch.particle[walls] = i;
     batch.slot[walls] = slot;
-    batch.had[walls] = static_cast<std::uint8_t>(with_history >> slot & 1u);
+    batch.had[walls] = with_history >> slot & 1;
     batch.gap[walls] = gap;
     batch.normal[0][walls] = normal.x;
     batch.normal[1][walls] = normal.y;

@@ -416,31 +416,46 @@ PDSIM_HD Load wall_contacts(int i, const ParticleStepArgs& a, ParticleContributi
 // Two slots' worth of doubles: one SSE2 register (GCC vector extensions).
 using Double2 = double __attribute__((vector_size(2 * sizeof(double))));
 
-// Bits 0 and 1 set when slots ja and jb overlap a particle at x with reach_sq = (r_i + r_j)^2.
-inline int pair_hits(Vec3 x, Double2 reach_sq, const ParticleArrays& in, int ja, int jb) {
-  const Double2 dx = x.x - Double2{in.x[ja], in.x[jb]};
-  const Double2 dy = x.y - Double2{in.y[ja], in.y[jb]};
-  const Double2 dz = x.z - Double2{in.z[ja], in.z[jb]};
-  const auto hit = dx * dx + dy * dy + dz * dz < reach_sq;  // lanes: -1 or 0
+// Bits 0 and 1 set when slots k and k + 1 of particle i's list (of n partners, padded to a
+// multiple of kSlotGroup with the particle itself) overlap it, at x with `radius`. `dist_sq`
+// receives the two squared centre distances (infinite for the padding).
+template <class V>
+inline int slot_group_hits(int i, Vec3 x, double radius, const ParticleStepArgs& a, int k, int n,
+                           Double2& dist_sq) {
+  static_assert(kSlotGroup == 2, "a group is one SSE2 pair");
+  const std::int32_t* slots = a.neighbours + a.slot_start[i];
+  const int j0 = slots[k], j1 = slots[k + 1];
+  Double2 reach_sq = Double2{} + 4 * radius * radius;
+  if constexpr (V::kPolydisperse) {
+    reach_sq = radius + Double2{a.radius[j0], a.radius[j1]};
+    reach_sq *= reach_sq;
+  }
+  const Double2 dx = x.x - Double2{a.in.x[j0], a.in.x[j1]};
+  const Double2 dy = x.y - Double2{a.in.y[j0], a.in.y[j1]};
+  const Double2 dz = x.z - Double2{a.in.z[j0], a.in.z[j1]};
+  dist_sq = dx * dx + dy * dy + dz * dz;
+  const auto hit = dist_sq < reach_sq;  // lanes: -1 or 0
 #if defined(__SSE2__)
-  return _mm_movemask_pd(reinterpret_cast<__m128d>(hit));
+  const int hits = _mm_movemask_pd(reinterpret_cast<__m128d>(hit));
 #else
-  return static_cast<int>((hit[0] & 1) | (hit[1] & 2));
+  const int hits = static_cast<int>((hit[0] & 1) | (hit[1] & 2));
 #endif
+  if (k + 1 < n) return hits;
+  dist_sq[1] = __builtin_inf();  // the padding is not a partner
+  return hits & 1;
 }
 #endif
 
 // Bit k set when neighbour slot k of particle i overlaps it. On the host, slots are tested
-// kSlotGroup (an SSE2 pair) at a time; lists are padded to a multiple of kSlotGroup with the
-// particle itself, and the padding bits are masked off. Groups of 2 test fewer padding slots
-// than groups of 4 in one AVX register: -4 % instructions at 196 spheres and -1 % at 8,000
-// (callgrind), where lists hold 2.5-2.9 partners. CUDA threads test one slot at a time.
+// kSlotGroup (an SSE2 pair) at a time. Groups of 2 test fewer padding slots than groups of 4
+// in one AVX register: -4 % instructions at 196 spheres and -1 % at 8,000 (callgrind), where
+// lists hold 2.5-2.9 partners. CUDA threads test one slot at a time.
 template <class V>
 PDSIM_HD std::uint64_t touching_slots(int i, Vec3 x, double radius, const ParticleStepArgs& a) {
   const int n = a.neighbour_count[i];
-  const std::int32_t* slots = a.neighbours + a.slot_start[i];
   std::uint64_t touching = 0;
 #if defined(__CUDACC__) || !defined(__GNUC__)
+  const std::int32_t* slots = a.neighbours + a.slot_start[i];
   for (int k = 0; k < n; ++k) {
     const int j = slots[k];
     const double dx = x.x - a.in.x[j], dy = x.y - a.in.y[j], dz = x.z - a.in.z[j];
@@ -448,18 +463,9 @@ PDSIM_HD std::uint64_t touching_slots(int i, Vec3 x, double radius, const Partic
     if (dx * dx + dy * dy + dz * dz < reach * reach) touching |= std::uint64_t{1} << k;
   }
 #else
-  static_assert(kSlotGroup == 2, "the loop below tests two slots");
-  const Double2 mono_reach_sq = Double2{} + 4 * radius * radius;
-  for (int k = 0; k < n; k += kSlotGroup) {
-    const int j0 = slots[k], j1 = slots[k + 1];
-    Double2 reach_sq = mono_reach_sq;
-    if constexpr (V::kPolydisperse) {
-      reach_sq = radius + Double2{a.radius[j0], a.radius[j1]};
-      reach_sq *= reach_sq;
-    }
-    touching |= static_cast<std::uint64_t>(pair_hits(x, reach_sq, a.in, j0, j1)) << k;
-  }
-  if (n < 64) touching &= (std::uint64_t{1} << n) - 1;
+  Double2 dist_sq;
+  for (int k = 0; k < n; k += kSlotGroup)
+    touching |= static_cast<std::uint64_t>(slot_group_hits<V>(i, x, radius, a, k, n, dist_sq)) << k;
 #endif
   return touching;
 }

@@ -142,22 +142,50 @@ template <class V>
   sum.dissipated_tangential += dissipated_tangential;
 }
 
+// When a particle's slot tests find no contact, its nearest partner's gap bounds how long none
+// can start: every particle moves at most `travel` (the drift bound of lists_expired()), so a
+// pair closes by at most twice that, and twice again allows for positions rounding a small
+// step up to one ulp. Until then its tests are skipped, exactly: a skipped test would have
+// found no contact. From a lattice start, most spheres are apart for tens of steps at a time.
+struct ClearanceSkip {
+  double travel;       // drift bound now (m), since the last list build
+  double* expiry;      // per particle: test again once travel reaches this
+  double reach_bound;  // largest reach of a pair, minus the particle's radius (r_max)
+};
+
 // Pair pass over particles [begin, end): which forward slots touch, listed, then their
 // contacts in SIMD lanes.
 template <class V>
-void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, ContactBatch& batch,
-                     StepTotals& total) {
+void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, const ClearanceSkip& skip,
+                     ContactBatch& batch, StepTotals& total) {
   const ParticleStepArgs a = shared;  // private: its pointers stay in registers
   std::int32_t* const particle = batch.particle.data();
   std::int32_t* const slot = batch.slot.data();
   std::int32_t* const had = batch.had.data();
   int pairs = 0;
   for (int i = begin; i < end; ++i) {
+    if (skip.travel < skip.expiry[i]) {
+      a.history.neighbour_mask_out[i] = 0;
+      continue;
+    }
     const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
-    const std::uint64_t touching =
-        touching_slots<V>(i, {a.in.x[i], a.in.y[i], a.in.z[i]}, radius, a);
+    const Vec3 x{a.in.x[i], a.in.y[i], a.in.z[i]};
+    const int n = a.neighbour_count[i];
+    std::uint64_t touching = 0;
+    Double2 nearest_sq = Double2{} + __builtin_inf(), dist_sq;
+    for (int k = 0; k < n; k += kSlotGroup) {
+      touching |= static_cast<std::uint64_t>(slot_group_hits<V>(i, x, radius, a, k, n, dist_sq))
+                  << k;
+      nearest_sq = nearest_sq < dist_sq ? nearest_sq : dist_sq;
+    }
     a.history.neighbour_mask_out[i] = touching;
-    if (!touching) continue;
+    if (!touching) {
+      const double reach = radius + skip.reach_bound;
+      const double gap = sqrt(std::min(nearest_sq[0], nearest_sq[1])) - reach;
+      skip.expiry[i] = skip.travel + 0.25 * gap - 1e-9 * reach;  // margin: rounding of the gap
+      continue;
+    }
+    skip.expiry[i] = skip.travel;
     const int base = a.slot_start[i];
     std::uint64_t with_history = 0;
     if constexpr (V::Tangential::kHistory) with_history = a.history.neighbour_mask_in[i];
@@ -273,6 +301,7 @@ class CpuEngine final : public DemEngine {
     if (needs_rebuild_) rebuild(container);
     dt_ = dt;
     const ParticleStepArgs a = args(container, dt);
+    const ClearanceSkip skip{travel_, expiry_.data(), r_max_};
     const int blocks = (count_ + kBlock - 1) / kBlock;
     block_totals_.assign(static_cast<std::size_t>(blocks), StepTotals{});
     auto range = [&](int b) {
@@ -281,7 +310,7 @@ class CpuEngine final : public DemEngine {
     // Each thread lists its blocks' contacts in its own batch.
     auto pair_block = [&](int b, ContactBatch& batch) {
       const auto [begin, end] = range(b);
-      pair_pass_block<V>(begin, end, a, batch, block_totals_[static_cast<std::size_t>(b)]);
+      pair_pass_block<V>(begin, end, a, skip, batch, block_totals_[static_cast<std::size_t>(b)]);
     };
     auto particle_block = [&](int b, ContactBatch& batch) {
       const auto [begin, end] = range(b);
@@ -364,6 +393,7 @@ class CpuEngine final : public DemEngine {
     slot_start_.assign(n + 1, 0);
     reverse_start_.assign(n + 1, 0);
     incoming_.assign(n, 0);
+    expiry_.assign(n, 0.0);
     needs_rebuild_ = true;
   }
 
@@ -476,7 +506,7 @@ class CpuEngine final : public DemEngine {
   std::size_t bytes_per_particle() const override {
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     std::size_t sum = pair_capacity_ * pair_doubles<V>() * sizeof(double) + bytes(radius_) +
-                      bytes(inv_mass_) + bytes(inv_inertia_) + bytes(incoming_);
+                      bytes(inv_mass_) + bytes(inv_inertia_) + bytes(incoming_) + bytes(expiry_);
     for (const auto& s : state_)
       for (const auto* a : s.all) sum += bytes(*a);
     for (const auto& h : history_)
@@ -605,6 +635,7 @@ class CpuEngine final : public DemEngine {
       std::swap(hin.neighbour_mask, scratch.neighbour_mask);
     }
     travel_ = 0;
+    std::fill(expiry_.begin(), expiry_.end(), 0.0);  // new partners: test every particle
     needs_rebuild_ = false;
   }
 
@@ -658,6 +689,7 @@ class CpuEngine final : public DemEngine {
   int current_ = 0, history_current_ = 0;  // the front buffers
   double r_min_ = 0, r_max_ = 0, skin_ = 0;
   double dt_ = 0, travel_ = 0;  // last step size; drift bound since the last build (m)
+  std::vector<double> expiry_;  // ClearanceSkip, per particle
   StateBuffer state_[2];
   HistoryBuffer history_[2];
   std::vector<double> radius_, inv_mass_, inv_inertia_;

@@ -4,6 +4,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <cstring>
 #include <numeric>
 
@@ -153,11 +154,17 @@ struct ClearanceSkip {
   double reach_bound;  // largest reach of a pair, minus the particle's radius (r_max)
 };
 
+// Per particle: force and torque (x, y, z each) of the step's contacts so far; zero between
+// steps (the particle pass clears what it integrates).
+using LoadArrays = std::array<double*, 6>;
+
 // Pair pass over particles [begin, end): which forward slots touch, listed, then their
-// contacts in SIMD lanes.
+// contacts in SIMD lanes, then their loads summed into `load` for both particles when both are
+// in the block (in list order, so the sums do not depend on threads). A partner in a later
+// block is flagged and gathers its pairs' loads from their slots in its particle pass.
 template <class V>
 void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, const ClearanceSkip& skip,
-                     ContactBatch& batch, StepTotals& total) {
+                     const LoadArrays& load, ContactBatch& batch, StepTotals& total) {
   const ParticleStepArgs a = shared;  // private: its pointers stay in registers
   std::int32_t* const particle = batch.particle.data();
   std::int32_t* const slot = batch.slot.data();
@@ -194,11 +201,40 @@ void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, const C
       particle[pairs] = i;
       slot[pairs] = base + k;
       had[pairs] = static_cast<std::int32_t>(with_history >> k & 1u);
-      raise_flag(a.incoming + a.neighbours[base + k]);
+      const int j = a.neighbours[base + k];
+      if (j >= end) raise_flag(a.incoming + j);
       ++pairs;
     }
   }
   pair_contacts_simd<V>(pairs, batch, shared, total);
+  constexpr int partner_torque = pair_doubles<V>() == 9 ? 6 : 3;
+  for (int e = 0; e < pairs; ++e) {
+    const int i = particle[e], j = a.neighbours[slot[e]];
+    const double* out = a.pair_load + pair_doubles<V>() * slot[e];
+    for (int c = 0; c < 6; ++c) load[c][i] += out[c];
+    if (j >= end) continue;
+    for (int c = 0; c < 3; ++c) load[c][j] -= out[c];
+    for (int c = 0; c < 3; ++c) load[3 + c][j] += out[partner_torque + c];
+  }
+}
+
+// Loads of particle i from pairs listed by particles of earlier blocks (before `begin`): from
+// their slots, in reverse-list order.
+template <class V>
+PDSIM_COLD Load earlier_block_loads(int i, int begin, const ParticleStepArgs& a) {
+  Load l;
+  a.incoming[i] = 0;
+  constexpr int partner_torque = pair_doubles<V>() == 9 ? 2 : 1;
+  const std::int32_t* reverse = a.reverse + a.reverse_start[i];
+  for (int r = 0; r < a.reverse_count[i]; ++r) {
+    const int owner = entry_owner(reverse[r]), k = entry_place(reverse[r]);
+    if (owner < begin && (a.history.neighbour_mask_out[owner] >> k & 1u)) {
+      const double* slot = a.pair_load + pair_doubles<V>() * (a.slot_start[owner] + k);
+      l.force -= load3(slot, 0);
+      l.torque += load3(slot, partner_torque);
+    }
+  }
+  return l;
 }
 
 // Lists the walls particle i touches in `batch` from entry `walls`; returns the new count.
@@ -228,18 +264,19 @@ PDSIM_COLD int list_walls(int i, const ParticleStepArgs& a, ContactBatch& batch,
 // order), then every particle's integration (SIMD). The vector sums are reduced in an order
 // fixed by the block, not by the threads.
 template <class V>
-void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, ContactBatch& batch,
-                         StepTotals& total) {
+void particle_pass_block(int begin, int end, const ParticleStepArgs& shared,
+                         const LoadArrays& block_load, ContactBatch& batch, StepTotals& total) {
   const ParticleStepArgs a = shared;  // private: its pointers stay in registers
   const int n = end - begin;
-  alignas(64) double load[6][kBlock];
+  double* const load[6] = {block_load[0] + begin, block_load[1] + begin, block_load[2] + begin,
+                           block_load[3] + begin, block_load[4] + begin, block_load[5] + begin};
   alignas(64) std::uint8_t kinds[kBlock];
   if constexpr (V::Tangential::kHistory) std::fill_n(a.history.wall_mask_out + begin, n, 0);
+    // Pairs within the block are already in `load`; kPairLoads marks pairs from earlier blocks.
 #pragma omp simd
-  for (int k = 0; k < n; ++k) {
-    kinds[k] = static_cast<std::uint8_t>(load_kinds<V>(begin + k, a));
-    for (auto& component : load) component[k] = 0;
-  }
+  for (int k = 0; k < n; ++k)
+    kinds[k] = static_cast<std::uint8_t>((a.incoming[begin + k] != 0 ? kPairLoads : 0) |
+                                         (near_wall<V>(begin + k, a) ? kWallLoads : 0));
   StepTotals sum;  // wall reactions and dissipation, then the integration's sums
   int walls = 0;
   for (int k = 0; k < n; ++k)
@@ -248,8 +285,12 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, Con
   for (int k = 0, e = 0; k < n; ++k) {
     if (!kinds[k]) continue;
     const int i = begin + k;
-    Load l;
-    if (kinds[k] & kPairLoads) l = pair_loads<V>(i, shared);
+    Load l{{load[0][k], load[1][k], load[2][k]}, {load[3][k], load[4][k], load[5][k]}};
+    if (kinds[k] & kPairLoads) {
+      const Load earlier = earlier_block_loads<V>(i, begin, shared);
+      l.force += earlier.force;
+      l.torque += earlier.torque;
+    }
     for (; e < walls && batch.particle[e] == i; ++e) {
       const Vec3 force{batch.load[0][e], batch.load[1][e], batch.load[2][e]};
       l.force += force;
@@ -263,10 +304,12 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared, Con
   }
   double kinetic = 0, speed_sq = 0;
 #pragma omp simd reduction(+ : kinetic) reduction(max : speed_sq)
-  for (int k = 0; k < n; ++k)
+  for (int k = 0; k < n; ++k) {
     integrate<V>(begin + k, a,
                  {{load[0][k], load[1][k], load[2][k]}, {load[3][k], load[4][k], load[5][k]}},
                  kinetic, speed_sq);
+    for (auto* component : load) component[k] = 0;  // cleared for the next step's pair pass
+  }
   sum.kinetic += kinetic;
   sum.speed_sq = max_of(sum.speed_sq, speed_sq);
   accumulate(total, sum);
@@ -302,6 +345,8 @@ class CpuEngine final : public DemEngine {
     dt_ = dt;
     const ParticleStepArgs a = args(container, dt);
     const ClearanceSkip skip{travel_, expiry_.data(), r_max_};
+    const LoadArrays load{loads_[0].data(), loads_[1].data(), loads_[2].data(),
+                          loads_[3].data(), loads_[4].data(), loads_[5].data()};
     const int blocks = (count_ + kBlock - 1) / kBlock;
     block_totals_.assign(static_cast<std::size_t>(blocks), StepTotals{});
     auto range = [&](int b) {
@@ -310,11 +355,13 @@ class CpuEngine final : public DemEngine {
     // Each thread lists its blocks' contacts in its own batch.
     auto pair_block = [&](int b, ContactBatch& batch) {
       const auto [begin, end] = range(b);
-      pair_pass_block<V>(begin, end, a, skip, batch, block_totals_[static_cast<std::size_t>(b)]);
+      pair_pass_block<V>(begin, end, a, skip, load, batch,
+                         block_totals_[static_cast<std::size_t>(b)]);
     };
     auto particle_block = [&](int b, ContactBatch& batch) {
       const auto [begin, end] = range(b);
-      particle_pass_block<V>(begin, end, a, batch, block_totals_[static_cast<std::size_t>(b)]);
+      particle_pass_block<V>(begin, end, a, load, batch,
+                             block_totals_[static_cast<std::size_t>(b)]);
     };
     if (blocks == 1 || threads_ == 1) {
       // Small scenes: a parallel region would cost more than it saves. In one thread, a
@@ -394,6 +441,7 @@ class CpuEngine final : public DemEngine {
     reverse_start_.assign(n + 1, 0);
     incoming_.assign(n, 0);
     expiry_.assign(n, 0.0);
+    for (auto& component : loads_) component.assign(n, 0.0);
     needs_rebuild_ = true;
   }
 
@@ -507,6 +555,7 @@ class CpuEngine final : public DemEngine {
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     std::size_t sum = pair_capacity_ * pair_doubles<V>() * sizeof(double) + bytes(radius_) +
                       bytes(inv_mass_) + bytes(inv_inertia_) + bytes(incoming_) + bytes(expiry_);
+    for (const auto& component : loads_) sum += bytes(component);
     for (const auto& s : state_)
       for (const auto* a : s.all) sum += bytes(*a);
     for (const auto& h : history_)
@@ -688,8 +737,9 @@ class CpuEngine final : public DemEngine {
   int count_ = 0, threads_ = 1, max_neighbours_ = 1;
   int current_ = 0, history_current_ = 0;  // the front buffers
   double r_min_ = 0, r_max_ = 0, skin_ = 0;
-  double dt_ = 0, travel_ = 0;  // last step size; drift bound since the last build (m)
-  std::vector<double> expiry_;  // ClearanceSkip, per particle
+  double dt_ = 0, travel_ = 0;    // last step size; drift bound since the last build (m)
+  std::vector<double> expiry_;    // ClearanceSkip, per particle
+  std::vector<double> loads_[6];  // LoadArrays
   StateBuffer state_[2];
   HistoryBuffer history_[2];
   std::vector<double> radius_, inv_mass_, inv_inertia_;

@@ -237,6 +237,24 @@ PDSIM_COLD Load earlier_block_loads(int i, int begin, const ParticleStepArgs& a)
   return l;
 }
 
+// f(k) for each k < n, in increasing order, with kinds[k] & bits set; kinds holds zeros up to
+// the next multiple of 8. Eight bytes are tested at a time: most particles have no loads to
+// gather, and a byte-by-byte scan mispredicted its branch at every one that has.
+template <class F>
+void for_each_marked(const std::uint8_t* kinds, int n, int bits, F&& f) {
+  static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "byte k of a word is kinds[k]");
+  const std::uint64_t pattern = 0x0101010101010101u * static_cast<std::uint64_t>(bits);
+  for (int k = 0; k < n; k += 8) {
+    std::uint64_t word;
+    std::memcpy(&word, kinds + k, sizeof word);
+    for (word &= pattern; word;) {
+      const int byte = __builtin_ctzll(word) / 8;
+      f(k + byte);
+      word &= ~(std::uint64_t{0xff} << (8 * byte));
+    }
+  }
+}
+
 // Lists the walls particle i touches in `batch` from entry `walls`; returns the new count.
 template <class V>
 PDSIM_COLD int list_walls(int i, const ParticleStepArgs& a, ContactBatch& batch, int walls,
@@ -270,20 +288,21 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared,
   const int n = end - begin;
   double* const load[6] = {block_load[0] + begin, block_load[1] + begin, block_load[2] + begin,
                            block_load[3] + begin, block_load[4] + begin, block_load[5] + begin};
-  alignas(64) std::uint8_t kinds[kBlock];
   if constexpr (V::Tangential::kHistory) std::fill_n(a.history.wall_mask_out + begin, n, 0);
-    // Pairs within the block are already in `load`; kPairLoads marks pairs from earlier blocks.
+  // Pairs within the block are already in `load`; kPairLoads marks pairs from earlier blocks.
+  alignas(64) std::uint8_t kinds[kBlock];
+  std::fill(kinds + n, kinds + (n + 7) / 8 * 8, 0);  // for for_each_marked()
 #pragma omp simd
   for (int k = 0; k < n; ++k)
     kinds[k] = static_cast<std::uint8_t>((a.incoming[begin + k] != 0 ? kPairLoads : 0) |
                                          (near_wall<V>(begin + k, a) ? kWallLoads : 0));
   StepTotals sum;  // wall reactions and dissipation, then the integration's sums
   int walls = 0;
-  for (int k = 0; k < n; ++k)
-    if (kinds[k] & kWallLoads) walls = list_walls<V>(begin + k, shared, batch, walls, sum);
+  for_each_marked(kinds, n, kWallLoads,
+                  [&](int k) { walls = list_walls<V>(begin + k, shared, batch, walls, sum); });
   wall_contacts_simd<V>(walls, batch, shared, sum);
-  for (int k = 0, e = 0; k < n; ++k) {
-    if (!kinds[k]) continue;
+  int e = 0;  // the next wall entry
+  for_each_marked(kinds, n, kPairLoads | kWallLoads, [&](int k) {
     const int i = begin + k;
     Load l{{load[0][k], load[1][k], load[2][k]}, {load[3][k], load[4][k], load[5][k]}};
     if (kinds[k] & kPairLoads) {
@@ -301,7 +320,7 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared,
     }
     load[0][k] = l.force.x, load[1][k] = l.force.y, load[2][k] = l.force.z;
     load[3][k] = l.torque.x, load[4][k] = l.torque.y, load[5][k] = l.torque.z;
-  }
+  });
   double kinetic = 0, speed_sq = 0;
 #pragma omp simd reduction(+ : kinetic) reduction(max : speed_sq)
   for (int k = 0; k < n; ++k) {

@@ -89,8 +89,10 @@ struct ParticleStepArgs {
   const std::int32_t* reverse_start;
   HistoryArrays history;
   // Written by the pair pass, read by the particle pass (with history.neighbour_mask_out).
-  std::uint32_t* incoming;  // set when a lower particle touches i; the particle pass clears it
-  double* pair_load;        // pair_doubles<V>() per slot
+  // Set when a lower particle touches i (CPU: one of an earlier block); the particle pass
+  // clears it.
+  std::uint32_t* incoming;
+  double* pair_load;  // pair_doubles<V>() per slot
   ContactParams contact;
   ContainerGeometry geometry;
   ContainerKinematics container;
@@ -270,8 +272,24 @@ PDSIM_HD void pair_contacts(int i, std::uint64_t touching, const ParticleStepArg
   }
 }
 
-// Particle pass: the loads of particle i's pairs, own slots first, then the slots of the
-// particles that list it, each in list order (so the sum does not depend on threads).
+// Adds to `load` the loads on particle i of the pairs in contact that particles below
+// `owner_limit` list, in reverse-list order, and clears its incoming flag.
+template <class V>
+PDSIM_COLD void add_incoming_loads(int i, int owner_limit, const ParticleStepArgs& a, Load& load) {
+  a.incoming[i] = 0;
+  const std::int32_t* reverse = a.reverse + a.reverse_start[i];
+  for (int r = 0; r < a.reverse_count[i]; ++r) {
+    const int owner = entry_owner(reverse[r]), k = entry_place(reverse[r]);
+    if (owner < owner_limit && (a.history.neighbour_mask_out[owner] >> k & 1u)) {
+      const double* slot = a.pair_load + pair_doubles<V>() * (a.slot_start[owner] + k);
+      load.force -= load3(slot, 0);
+      load.torque += load3(slot, pair_doubles<V>() == 9 ? 2 : 1);
+    }
+  }
+}
+
+// Particle pass (CUDA): the loads of particle i's pairs, own slots first, then the slots of
+// the particles that list it, each in list order (so the sum does not depend on threads).
 template <class V>
 PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
   Load load;
@@ -281,18 +299,7 @@ PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
     load.force += load3(slot, 0);
     load.torque += load3(slot, 1);
   }
-  if (a.incoming[i]) {
-    a.incoming[i] = 0;
-    const std::int32_t* reverse = a.reverse + a.reverse_start[i];
-    for (int r = 0; r < a.reverse_count[i]; ++r) {
-      const int owner = entry_owner(reverse[r]), k = entry_place(reverse[r]);
-      if (a.history.neighbour_mask_out[owner] >> k & 1u) {
-        const double* slot = a.pair_load + pair_doubles<V>() * (a.slot_start[owner] + k);
-        load.force -= load3(slot, 0);
-        load.torque += load3(slot, pair_doubles<V>() == 9 ? 2 : 1);
-      }
-    }
-  }
+  if (a.incoming[i]) add_incoming_loads<V>(i, a.count, a, load);
   return load;
 }
 

@@ -218,25 +218,6 @@ void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, const C
   }
 }
 
-// Loads of particle i from pairs listed by particles of earlier blocks (before `begin`): from
-// their slots, in reverse-list order.
-template <class V>
-PDSIM_COLD Load earlier_block_loads(int i, int begin, const ParticleStepArgs& a) {
-  Load l;
-  a.incoming[i] = 0;
-  constexpr int partner_torque = pair_doubles<V>() == 9 ? 2 : 1;
-  const std::int32_t* reverse = a.reverse + a.reverse_start[i];
-  for (int r = 0; r < a.reverse_count[i]; ++r) {
-    const int owner = entry_owner(reverse[r]), k = entry_place(reverse[r]);
-    if (owner < begin && (a.history.neighbour_mask_out[owner] >> k & 1u)) {
-      const double* slot = a.pair_load + pair_doubles<V>() * (a.slot_start[owner] + k);
-      l.force -= load3(slot, 0);
-      l.torque += load3(slot, partner_torque);
-    }
-  }
-  return l;
-}
-
 // f(k) for each k < n, in increasing order, with kinds[k] & bits set; kinds holds zeros up to
 // the next multiple of 8. Eight bytes are tested at a time: most particles have no loads to
 // gather, and a byte-by-byte scan mispredicted its branch at every one that has.
@@ -305,11 +286,7 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared,
   for_each_marked(kinds, n, kPairLoads | kWallLoads, [&](int k) {
     const int i = begin + k;
     Load l{{load[0][k], load[1][k], load[2][k]}, {load[3][k], load[4][k], load[5][k]}};
-    if (kinds[k] & kPairLoads) {
-      const Load earlier = earlier_block_loads<V>(i, begin, shared);
-      l.force += earlier.force;
-      l.torque += earlier.torque;
-    }
+    if (kinds[k] & kPairLoads) add_incoming_loads<V>(i, begin, shared, l);
     for (; e < walls && batch.particle[e] == i; ++e) {
       const Vec3 force{batch.load[0][e], batch.load[1][e], batch.load[2][e]};
       l.force += force;

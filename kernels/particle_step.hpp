@@ -272,6 +272,17 @@ PDSIM_HD void pair_contacts(int i, std::uint64_t touching, const ParticleStepArg
   }
 }
 
+// What the contact in forward slot s puts on its owner (force, torque) and on its partner
+// (minus the force, partner_torque), as pair_contact() stored them.
+struct SlotLoads {
+  Vec3 force, torque, partner_torque;
+};
+template <class V>
+PDSIM_HD SlotLoads slot_loads(int s, const ParticleStepArgs& a) {
+  const double* slot = a.pair_load + pair_doubles<V>() * s;
+  return {load3(slot, 0), load3(slot, 1), load3(slot, pair_doubles<V>() == 9 ? 2 : 1)};
+}
+
 // Adds to `load` the loads on particle i of the pairs in contact that particles below
 // `owner_limit` list, in reverse-list order, and clears its incoming flag.
 template <class V>
@@ -281,9 +292,9 @@ PDSIM_COLD void add_incoming_loads(int i, int owner_limit, const ParticleStepArg
   for (int r = 0; r < a.reverse_count[i]; ++r) {
     const int owner = entry_owner(reverse[r]), k = entry_place(reverse[r]);
     if (owner < owner_limit && (a.history.neighbour_mask_out[owner] >> k & 1u)) {
-      const double* slot = a.pair_load + pair_doubles<V>() * (a.slot_start[owner] + k);
-      load.force -= load3(slot, 0);
-      load.torque += load3(slot, pair_doubles<V>() == 9 ? 2 : 1);
+      const SlotLoads l = slot_loads<V>(a.slot_start[owner] + k, a);
+      load.force -= l.force;
+      load.torque += l.partner_torque;
     }
   }
 }
@@ -295,9 +306,9 @@ PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
   Load load;
   const int base = a.slot_start[i];
   for (std::uint64_t m = a.history.neighbour_mask_out[i]; m; m &= m - 1) {
-    const double* slot = a.pair_load + pair_doubles<V>() * (base + lowest_bit(m));
-    load.force += load3(slot, 0);
-    load.torque += load3(slot, 1);
+    const SlotLoads l = slot_loads<V>(base + lowest_bit(m), a);
+    load.force += l.force;
+    load.torque += l.torque;
   }
   if (a.incoming[i]) add_incoming_loads<V>(i, a.count, a, load);
   return load;

@@ -207,14 +207,15 @@ void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, const C
     }
   }
   pair_contacts_simd<V>(pairs, batch, shared, total);
-  constexpr int partner_torque = pair_doubles<V>() == 9 ? 6 : 3;
+  auto add = [&](int i, Vec3 force, Vec3 torque) {
+    load[0][i] += force.x, load[1][i] += force.y, load[2][i] += force.z;
+    load[3][i] += torque.x, load[4][i] += torque.y, load[5][i] += torque.z;
+  };
   for (int e = 0; e < pairs; ++e) {
     const int i = particle[e], j = a.neighbours[slot[e]];
-    const double* out = a.pair_load + pair_doubles<V>() * slot[e];
-    for (int c = 0; c < 6; ++c) load[c][i] += out[c];
-    if (j >= end) continue;
-    for (int c = 0; c < 3; ++c) load[c][j] -= out[c];
-    for (int c = 0; c < 3; ++c) load[3 + c][j] += out[partner_torque + c];
+    const SlotLoads l = slot_loads<V>(slot[e], a);
+    add(i, l.force, l.torque);
+    if (j < end) add(j, -1.0 * l.force, l.partner_torque);
   }
 }
 

@@ -5,6 +5,7 @@
 // lives in the pair's forward slot and is carried over to the new lists by partner identity.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 
 #include "kernels/dem_types.hpp"
@@ -107,11 +108,12 @@ PDSIM_HD void pad_slots(std::int32_t* list, int count, int self) {
   for (int k = count; k < padded(count); ++k) list[k] = self;
 }
 
-// Calls f(j) for every particle j in the 27 cells around position p, in a fixed order (so the
-// lists do not depend on threads).
+// Calls f(j) for every particle j in [lo, hi) in the 27 cells around position p, in a fixed
+// order (so the lists do not depend on threads). Particles are sorted by cell, so the range
+// empties the cells on the other side of a particle's own cell before any distance test.
 template <class F>
 PDSIM_HD void for_each_nearby(const Grid& g, Vec3 p, const std::int32_t* cell_start,
-                              const std::int32_t* cell_end, F&& f) {
+                              const std::int32_t* cell_end, int lo, int hi, F&& f) {
   const double inv = 1.0 / g.cell_size;
   const int cx = clamp_cell((p.x - g.origin.x) * inv, g.nx);
   const int cy = clamp_cell((p.y - g.origin.y) * inv, g.ny);
@@ -120,7 +122,9 @@ PDSIM_HD void for_each_nearby(const Grid& g, Vec3 p, const std::int32_t* cell_st
     for (int y = cy > 0 ? cy - 1 : 0; y <= cy + 1 && y < g.ny; ++y)
       for (int x = cx > 0 ? cx - 1 : 0; x <= cx + 1 && x < g.nx; ++x) {
         const int cell = (z * g.ny + y) * g.nx + x;
-        for (int j = cell_start[cell]; j < cell_end[cell]; ++j) f(j);
+        const int first = cell_start[cell] > lo ? cell_start[cell] : lo;
+        const int last = cell_end[cell] < hi ? cell_end[cell] : hi;
+        for (int j = first; j < last; ++j) f(j);
       }
 }
 
@@ -141,8 +145,7 @@ PDSIM_HD bool build_neighbours_of(int i, const NeighbourBuildArgs& a) {
   std::int32_t* partner = a.neighbours ? a.partner_id + a.slot_start[i] : nullptr;
   int n = 0;
   bool fits = true;
-  for_each_nearby(a.grid, p, a.cell_start, a.cell_end, [&](int j) {
-    if (j <= i) return;
+  for_each_nearby(a.grid, p, a.cell_start, a.cell_end, i + 1, a.count, [&](int j) {
     const Vec3 d{p.x - a.x[j], p.y - a.y[j], p.z - a.z[j]};
     const double reach = ri + (a.radius ? a.radius[j] : a.mono_radius) + a.skin;
     if (dot(d, d) >= reach * reach) return;
@@ -192,8 +195,7 @@ PDSIM_HD bool build_neighbours_of(int i, const NeighbourBuildArgs& a) {
 PDSIM_HD bool build_reverse_of(int j, const NeighbourBuildArgs& a) {
   int n = 0;
   bool fits = true;
-  for_each_nearby(a.grid, {a.x[j], a.y[j], a.z[j]}, a.cell_start, a.cell_end, [&](int i) {
-    if (i >= j) return;
+  for_each_nearby(a.grid, {a.x[j], a.y[j], a.z[j]}, a.cell_start, a.cell_end, 0, j, [&](int i) {
     const int k = find_slot(a.neighbours + a.slot_start[i], a.neighbour_count[i], j);
     if (k < 0) return;
     if (n == a.max_neighbours) {
@@ -204,6 +206,24 @@ PDSIM_HD bool build_reverse_of(int j, const NeighbourBuildArgs& a) {
     ++n;
   });
   a.reverse_count[j] = n;
+  return fits;
+}
+
+// All reverse lists at once from the forward lists (host): one sweep over the owners in
+// ascending order, the order build_reverse_of() finds them in (it visits cells in index order,
+// and particles are sorted by cell), so both give the same lists, without a neighbour search or
+// a list scan per candidate. Only counts while a.reverse is nullptr. Returns false on overflow.
+inline bool build_reverse_lists(const NeighbourBuildArgs& a) {
+  std::fill_n(a.reverse_count, a.count, 0);
+  bool fits = true;
+  for (int i = 0; i < a.count; ++i)
+    for (int k = 0; k < a.neighbour_count[i]; ++k) {
+      const int j = a.neighbours[a.slot_start[i] + k];
+      const int n = a.reverse_count[j]++;
+      if (n == a.max_neighbours) fits = false;
+      if (a.reverse && n < a.max_neighbours)
+        a.reverse[a.reverse_start[j] + n] = reverse_entry(i, k);
+    }
   return fits;
 }
 

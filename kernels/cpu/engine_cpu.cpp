@@ -44,14 +44,23 @@ struct HistoryBuffer {
   std::vector<std::uint8_t> wall_mask;
 };
 
+// a[i] = a[order[i]] (stride entries per particle) through `scratch`, which swaps with a. A
+// scratch that lives on (the other history buffer) spares the page faults of a fresh large
+// one at each rebuild: 0.7 ms of a 0.9 ms sort for the wall history of 8,000 spheres.
 template <class T>
-void permute(std::vector<T>& a, const std::vector<std::int32_t>& order, std::size_t stride = 1) {
+void permute(std::vector<T>& a, const std::vector<std::int32_t>& order, std::size_t stride,
+             std::vector<T>& scratch) {
   if (a.empty()) return;
-  std::vector<T> b(a.size());
+  scratch.resize(a.size());
   for (std::size_t i = 0; i < order.size(); ++i)
     std::copy_n(a.begin() + static_cast<std::ptrdiff_t>(order[i] * stride), stride,
-                b.begin() + static_cast<std::ptrdiff_t>(i * stride));
-  a.swap(b);
+                scratch.begin() + static_cast<std::ptrdiff_t>(i * stride));
+  a.swap(scratch);
+}
+template <class T>
+void permute(std::vector<T>& a, const std::vector<std::int32_t>& order) {
+  std::vector<T> scratch;
+  permute(a, order, 1, scratch);
 }
 
 // A block's contacts, listed by scalar loops and then computed in SIMD lanes: the contact laws
@@ -630,8 +639,9 @@ class CpuEngine final : public DemEngine {
     permute(inv_inertia_, order);
     HistoryBuffer& hin = history_[history_current_];
     HistoryBuffer& scratch = history_[history_current_ ^ 1];
-    permute(hin.wall, order, 3 * kWallSlots);
-    permute(hin.wall_mask, order);
+    // Through the back buffers: the next step rewrites them (masks whole, history where live).
+    permute(hin.wall, order, 3 * kWallSlots, scratch.wall);
+    permute(hin.wall_mask, order, 1, scratch.wall_mask);
 
     NeighbourBuildArgs b{};
     b.count = count_;
@@ -668,10 +678,10 @@ class CpuEngine final : public DemEngine {
     b.neighbours = neighbours_.data();
     b.partner_id = partner_id_.data();
     fits &= for_all([&](int i) { return build_neighbours_of(i, b); });
-    fits &= for_all([&](int i) { return build_reverse_of(i, b); });
+    fits &= build_reverse_lists(b);  // counts
     set_reverse_starts();
     b.reverse = reverse_.data();
-    fits &= for_all([&](int i) { return build_reverse_of(i, b); });
+    build_reverse_lists(b);
     if (!fits)
       throw SimulationError("neighbour list overflow (" + std::to_string(max_neighbours_) +
                             " slots): particles are packed beyond the densest packing; the "

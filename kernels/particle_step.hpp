@@ -211,11 +211,20 @@ PDSIM_HD void raise_flag(std::uint32_t* flag) {
 #endif
 }
 
-// The contact of particle i with the partner in its forward slot s (`had`: the slot holds
-// history): the pair's loads into the slot, its history into the output, its dissipation into
-// the sums. One function for the CUDA threads' loop below and the CPU's SIMD batches.
+// A contact's tangential history from its slot: zero unless `had` (the slot holds history).
+// Read unconditionally (every slot holds finite doubles) and then selected: a masked load
+// would keep GCC from vectorising the CPU batches.
+PDSIM_HD Vec3 slot_history(const double* history, int slot, bool had) {
+  const Vec3 xi = load3(history, slot);
+  return had ? xi : Vec3{};
+}
+
+// The contact of particle i with the partner in its forward slot s, with tangential history
+// xi (slot_history(); the new history out): the pair's loads into the slot, its dissipation
+// into the sums. One function for the CUDA threads' loop below and the CPU's SIMD batches;
+// the callers move the history, so that the CPU can update it in place.
 template <class V>
-PDSIM_HD void pair_contact(int i, int s, bool had, const ParticleStepArgs& a,
+PDSIM_HD void pair_contact(int i, int s, Vec3& xi, const ParticleStepArgs& a,
                            double& dissipated_normal, double& dissipated_tangential) {
   const Body b = body<V>(i, a);
   const int j = a.neighbours[s];
@@ -236,19 +245,11 @@ PDSIM_HD void pair_contact(int i, int s, bool had, const ParticleStepArgs& a,
   const Vec3 vj{a.in.vx[j], a.in.vy[j], a.in.vz[j]};
   const Vec3 wj{a.in.wx[j], a.in.wy[j], a.in.wz[j]};
   const Vec3 vrel = v - vj - cross(b.radius * w + radius_j * wj, normal);
-  // Read unconditionally (every slot holds finite doubles) and then selected: a masked load
-  // would keep GCC from vectorising the CPU batches.
-  Vec3 xi{};
-  if constexpr (V::Tangential::kHistory) {
-    xi = load3(a.history.neighbour_in, s);
-    if (!had) xi = Vec3{};
-  }
   // The slot test and this distance may round differently (FMA contraction): an overlap
   // of a few ulp below zero is zero, not a NaN in the Hertz root.
   const auto out = contact<V>(max_of(reach - dist, 0.0), normal, vrel, w - wj, b.radius, radius_j,
                               b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
                               dissipated_normal, dissipated_tangential);
-  if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, s, xi);
   // Indexed from pair_load itself, which GCC can turn into scatter stores.
   const int load = pair_doubles<V>() / 3 * s;
   store3(a.pair_load, load, out.force);
@@ -266,8 +267,11 @@ PDSIM_HD void pair_contacts(int i, std::uint64_t touching, const ParticleStepArg
   if constexpr (V::Tangential::kHistory) had = a.history.neighbour_mask_in[i];
   for (std::uint64_t m = touching; m; m &= m - 1) {
     const int k = lowest_bit(m);
-    pair_contact<V>(i, base + k, had >> k & 1u, a, sum.dissipated_normal,
-                    sum.dissipated_tangential);
+    Vec3 xi{};
+    if constexpr (V::Tangential::kHistory)
+      xi = slot_history(a.history.neighbour_in, base + k, had >> k & 1u);
+    pair_contact<V>(i, base + k, xi, a, sum.dissipated_normal, sum.dissipated_tangential);
+    if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, base + k, xi);
     raise_flag(a.incoming + a.neighbours[base + k]);
   }
 }
@@ -374,13 +378,12 @@ PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribut
   }
 }
 
-// The contact of particle i with wall `slot` at `gap` (`had`: the slot holds history): its
-// history into the output, its dissipation into the sums; returns its loads on the particle.
-// One function for the CUDA threads and the CPU's SIMD batches.
+// The contact of particle i with a wall at `gap` along `normal`, with tangential history xi
+// (as in pair_contact()): its dissipation into the sums; returns its loads on the particle. One
+// function for the CUDA threads and the CPU's SIMD batches.
 template <class V>
-PDSIM_HD Load wall_contact(int i, int slot, double gap, Vec3 normal, bool had,
-                           const ParticleStepArgs& a, double& dissipated_normal,
-                           double& dissipated_tangential) {
+PDSIM_HD Load wall_contact(int i, double gap, Vec3 normal, Vec3& xi, const ParticleStepArgs& a,
+                           double& dissipated_normal, double& dissipated_tangential) {
   const Body b = body<V>(i, a);
   const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
   const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
@@ -389,15 +392,9 @@ PDSIM_HD Load wall_contact(int i, int slot, double gap, Vec3 normal, bool had,
     const Vec3 offset = Vec3{a.in.x[i], a.in.y[i], a.in.z[i]} - a.container.position;
     v_wall_rel -= cross(a.container.angular_velocity, offset);
   }
-  Vec3 xi{};  // read unconditionally, as in pair_contact()
-  if constexpr (V::Tangential::kHistory) {
-    xi = load3(a.history.wall_in, i * kWallSlots + slot);
-    if (!had) xi = Vec3{};
-  }
   const Vec3 vrel = v_wall_rel - cross(b.radius * w, normal);
   const auto out = contact<V>(b.radius - gap, normal, vrel, w, b.radius, 0.0, b.radius, b.mass,
                               true, &xi, a.dt, a.contact, dissipated_normal, dissipated_tangential);
-  if constexpr (V::Tangential::kHistory) store3(a.history.wall_out, i * kWallSlots + slot, xi);
   return {out.force, out.torque};
 }
 
@@ -421,8 +418,12 @@ PDSIM_HD Load wall_contacts(int i, const ParticleStepArgs& a, ParticleContributi
   std::uint8_t had = 0, touched = 0;
   if constexpr (V::Tangential::kHistory) had = a.history.wall_mask_in[i];
   touching_walls<V>(i, a, sum, [&](int slot, double gap, Vec3 normal) {
-    const Load l = wall_contact<V>(i, slot, gap, normal, had >> slot & 1u, a, sum.dissipated_normal,
-                                   sum.dissipated_tangential);
+    Vec3 xi{};
+    if constexpr (V::Tangential::kHistory)
+      xi = slot_history(a.history.wall_in, i * kWallSlots + slot, had >> slot & 1u);
+    const Load l =
+        wall_contact<V>(i, gap, normal, xi, a, sum.dissipated_normal, sum.dissipated_tangential);
+    if constexpr (V::Tangential::kHistory) store3(a.history.wall_out, i * kWallSlots + slot, xi);
     touched = static_cast<std::uint8_t>(touched | (1u << slot));
     load.force += l.force;
     load.torque += l.torque;

@@ -92,7 +92,7 @@ struct ParticleStepArgs {
   // Set when a lower particle touches i (CPU: one of an earlier block); the particle pass
   // clears it.
   std::uint32_t* incoming;
-  double* pair_load;  // pair_doubles<V>() per slot
+  double* pair_load;  // pair_doubles<V>() per slot in contact (CPU: partner in a later block)
   ContactParams contact;
   ContainerGeometry geometry;
   ContainerKinematics container;
@@ -220,12 +220,12 @@ PDSIM_HD Vec3 slot_history(const double* history, int slot, bool had) {
 }
 
 // The contact of particle i with the partner in its forward slot s, with tangential history
-// xi (slot_history(); the new history out): the pair's loads into the slot, its dissipation
-// into the sums. One function for the CUDA threads' loop below and the CPU's SIMD batches;
-// the callers move the history, so that the CPU can update it in place.
+// xi (slot_history(); the new history out): its dissipation into the sums; returns its loads.
+// One function for the CUDA threads' loop below and the CPU's SIMD batches; the callers move
+// the history and the loads, so that the CPU can keep them in its batches.
 template <class V>
-PDSIM_HD void pair_contact(int i, int s, Vec3& xi, const ParticleStepArgs& a,
-                           double& dissipated_normal, double& dissipated_tangential) {
+PDSIM_HD ContactOutcome pair_contact(int i, int s, Vec3& xi, const ParticleStepArgs& a,
+                                     double& dissipated_normal, double& dissipated_tangential) {
   const Body b = body<V>(i, a);
   const int j = a.neighbours[s];
   const Vec3 d{a.in.x[i] - a.in.x[j], a.in.y[i] - a.in.y[j], a.in.z[i] - a.in.z[j]};
@@ -247,14 +247,23 @@ PDSIM_HD void pair_contact(int i, int s, Vec3& xi, const ParticleStepArgs& a,
   const Vec3 vrel = v - vj - cross(b.radius * w + radius_j * wj, normal);
   // The slot test and this distance may round differently (FMA contraction): an overlap
   // of a few ulp below zero is zero, not a NaN in the Hertz root.
-  const auto out = contact<V>(max_of(reach - dist, 0.0), normal, vrel, w - wj, b.radius, radius_j,
-                              b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
-                              dissipated_normal, dissipated_tangential);
-  // Indexed from pair_load itself, which GCC can turn into scatter stores.
-  const int load = pair_doubles<V>() / 3 * s;
-  store3(a.pair_load, load, out.force);
-  store3(a.pair_load, load + 1, out.torque);
-  if constexpr (pair_doubles<V>() == 9) store3(a.pair_load, load + 2, out.partner_torque);
+  return contact<V>(max_of(reach - dist, 0.0), normal, vrel, w - wj, b.radius, radius_j,
+                    b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
+                    dissipated_normal, dissipated_tangential);
+}
+
+// A pair's loads in its forward slot s, for the partner to gather (slot_loads() reads them).
+template <class V>
+PDSIM_HD void store_slot_loads(int s, const ParticleStepArgs& a, const ContactOutcome& l) {
+  double* slot = a.pair_load + pair_doubles<V>() * s;
+  store3(slot, 0, l.force);
+  store3(slot, 1, l.torque);
+  if constexpr (pair_doubles<V>() == 9) store3(slot, 2, l.partner_torque);
+}
+template <class V>
+PDSIM_HD ContactOutcome slot_loads(int s, const ParticleStepArgs& a) {
+  const double* slot = a.pair_load + pair_doubles<V>() * s;
+  return {load3(slot, 0), load3(slot, 1), load3(slot, pair_doubles<V>() == 9 ? 2 : 1)};
 }
 
 // Pair pass, contacts of particle i over the forward slots set in `touching` (CUDA): each
@@ -270,21 +279,12 @@ PDSIM_HD void pair_contacts(int i, std::uint64_t touching, const ParticleStepArg
     Vec3 xi{};
     if constexpr (V::Tangential::kHistory)
       xi = slot_history(a.history.neighbour_in, base + k, had >> k & 1u);
-    pair_contact<V>(i, base + k, xi, a, sum.dissipated_normal, sum.dissipated_tangential);
+    store_slot_loads<V>(
+        base + k, a,
+        pair_contact<V>(i, base + k, xi, a, sum.dissipated_normal, sum.dissipated_tangential));
     if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, base + k, xi);
     raise_flag(a.incoming + a.neighbours[base + k]);
   }
-}
-
-// What the contact in forward slot s puts on its owner (force, torque) and on its partner
-// (minus the force, partner_torque), as pair_contact() stored them.
-struct SlotLoads {
-  Vec3 force, torque, partner_torque;
-};
-template <class V>
-PDSIM_HD SlotLoads slot_loads(int s, const ParticleStepArgs& a) {
-  const double* slot = a.pair_load + pair_doubles<V>() * s;
-  return {load3(slot, 0), load3(slot, 1), load3(slot, pair_doubles<V>() == 9 ? 2 : 1)};
 }
 
 // Adds to `load` the loads on particle i of the pairs in contact that particles below
@@ -296,7 +296,7 @@ PDSIM_COLD void add_incoming_loads(int i, int owner_limit, const ParticleStepArg
   for (int r = 0; r < a.reverse_count[i]; ++r) {
     const int owner = entry_owner(reverse[r]), k = entry_place(reverse[r]);
     if (owner < owner_limit && (a.history.neighbour_mask_out[owner] >> k & 1u)) {
-      const SlotLoads l = slot_loads<V>(a.slot_start[owner] + k, a);
+      const ContactOutcome l = slot_loads<V>(a.slot_start[owner] + k, a);
       load.force -= l.force;
       load.torque += l.partner_torque;
     }
@@ -310,7 +310,7 @@ PDSIM_COLD Load pair_loads(int i, const ParticleStepArgs& a) {
   Load load;
   const int base = a.slot_start[i];
   for (std::uint64_t m = a.history.neighbour_mask_out[i]; m; m &= m - 1) {
-    const SlotLoads l = slot_loads<V>(base + lowest_bit(m), a);
+    const ContactOutcome l = slot_loads<V>(base + lowest_bit(m), a);
     load.force += l.force;
     load.torque += l.torque;
   }

@@ -72,19 +72,28 @@ struct ContactBatch {
   std::vector<std::int32_t> had;       // the slot holds history (32 bits: see kLanes)
   std::vector<double> xi[3];           // tangential history, in and then out
   std::vector<double> gap, normal[3];  // walls
-  std::vector<double> load[6];         // walls: force and torque on the particle
+  // Loads: force and torque on the particle (owner), then the torque on a pair's partner.
+  std::vector<double> load[9];
   void resize(std::size_t pairs, std::size_t walls) {
     pairs += kLanes, walls += kLanes;  // room for the padding
     const std::size_t n = std::max(pairs, walls);
     for (auto* v : {&particle, &slot, &had}) v->resize(n);
     for (auto& v : xi) v.resize(n);
-    for (auto* v : {&gap, &normal[0], &normal[1], &normal[2], &load[0], &load[1], &load[2],
-                    &load[3], &load[4], &load[5]})
-      v->resize(walls);
+    for (auto& v : load) v.resize(n);
+    for (auto* v : {&gap, &normal[0], &normal[1], &normal[2]}) v->resize(walls);
   }
   std::size_t bytes() const {
-    return particle.size() * (3 * sizeof(std::int32_t) + 3 * sizeof(double)) +
-           gap.size() * 10 * sizeof(double);
+    return particle.size() * (3 * sizeof(std::int32_t) + 12 * sizeof(double)) +
+           gap.size() * 4 * sizeof(double);
+  }
+  // A pair entry's loads; the partner's torque is stored only when it may differ (as in
+  // pair_doubles()).
+  template <class V>
+  ContactOutcome loads(int e) const {
+    const int partner = pair_doubles<V>() == 9 ? 6 : 3;
+    return {{load[0][e], load[1][e], load[2][e]},
+            {load[3][e], load[4][e], load[5][e]},
+            {load[partner][e], load[partner + 1][e], load[partner + 2][e]}};
   }
   // Reads the history of entries [0, n) from `history` (3 doubles per slot), pads the entries
   // to padded_lanes(n) with copies of entry n - 1 (walls also its gap and normal): computing
@@ -118,8 +127,9 @@ struct ContactBatch {
 };
 
 // The contact laws of a batch's first `pairs` pair entries, in SIMD lanes, over the padded
-// entries (the padding's dissipation is not counted). Flattened: the laws vectorise only when
-// inlined, which GCC's own heuristics did for some variants and not others.
+// entries (the padding's dissipation is not counted); their loads go to batch.load.
+// Flattened: the laws vectorise only when inlined, which GCC's own heuristics did for some
+// variants and not others.
 template <class V>
 [[gnu::flatten]] void pair_contacts_simd(int pairs, ContactBatch& batch,
                                          const ParticleStepArgs& shared, StepTotals& total) {
@@ -130,14 +140,22 @@ template <class V>
   const std::int32_t* const particle = batch.particle.data();
   const std::int32_t* const slot = batch.slot.data();
   double* const xi[3] = {batch.xi[0].data(), batch.xi[1].data(), batch.xi[2].data()};
+  double* const out[9] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
+                          batch.load[3].data(), batch.load[4].data(), batch.load[5].data(),
+                          batch.load[6].data(), batch.load[7].data(), batch.load[8].data()};
   double dissipated_normal = 0, dissipated_tangential = 0;
 #pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
   for (int e = 0; e < end; ++e) {
     double normal = 0, tangential = 0;
     Vec3 h{};
     if constexpr (history) h = {xi[0][e], xi[1][e], xi[2][e]};
-    pair_contact<V>(particle[e], slot[e], h, a, normal, tangential);
+    const ContactOutcome l = pair_contact<V>(particle[e], slot[e], h, a, normal, tangential);
     if constexpr (history) xi[0][e] = h.x, xi[1][e] = h.y, xi[2][e] = h.z;
+    out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
+    out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
+    if constexpr (pair_doubles<V>() == 9)
+      out[6][e] = l.partner_torque.x, out[7][e] = l.partner_torque.y,
+      out[8][e] = l.partner_torque.z;
     dissipated_normal += e < pairs ? normal : 0.0;
     dissipated_tangential += e < pairs ? tangential : 0.0;
   }
@@ -197,7 +215,8 @@ using LoadArrays = std::array<double*, 6>;
 // Pair pass over particles [begin, end): which forward slots touch, listed, then their
 // contacts in SIMD lanes, then their loads summed into `load` for both particles when both are
 // in the block (in list order, so the sums do not depend on threads). A partner in a later
-// block is flagged and gathers its pairs' loads from their slots in its particle pass.
+// block is flagged, and gathers its pairs' loads in its particle pass from their slots, where
+// only those pairs store them.
 template <class V>
 void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, const ClearanceSkip& skip,
                      const LoadArrays& load, ContactBatch& batch, StepTotals& total) {
@@ -249,9 +268,12 @@ void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, const C
   };
   for (int e = 0; e < pairs; ++e) {
     const int i = particle[e], j = a.neighbours[slot[e]];
-    const SlotLoads l = slot_loads<V>(slot[e], a);
+    const ContactOutcome l = batch.loads<V>(e);
     add(i, l.force, l.torque);
-    if (j < end) add(j, -1.0 * l.force, l.partner_torque);
+    if (j < end)
+      add(j, -1.0 * l.force, l.partner_torque);
+    else
+      store_slot_loads<V>(slot[e], a, l);  // gathered in the partner's particle pass
   }
 }
 

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstring>
 #include <numeric>
 
@@ -375,12 +376,62 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared,
   accumulate(total, sum);
 }
 
+// A pass's blocks shared out among the threads. Each thread owns a contiguous share, the same
+// every step (its particles stay in its core's cache), and takes its blocks from the front; a
+// thread that has run out takes the others' from the back, so that neither an uneven share
+// (the pile's blocks have more contacts) nor a thread delayed by the machine holds the other
+// at the barrier. Which thread runs a block does not change the results.
+class BlockShares {
+ public:
+  BlockShares() = default;
+  explicit BlockShares(int threads)
+      : threads_(threads), shares_(new Share[static_cast<std::size_t>(threads)]) {}
+  void reset(int blocks) {  // before the parallel region
+    for (int t = 0; t < threads_; ++t)
+      shares_[t].range.store(pack(t * blocks / threads_, (t + 1) * blocks / threads_),
+                             std::memory_order_relaxed);
+  }
+  // f(b) for the blocks that thread t takes.
+  template <class F>
+  void run(int t, F&& f) {
+    int b;
+    while (take(shares_[t], true, b)) f(b);
+    for (int v = 1; v < threads_; ++v)
+      while (take(shares_[(t + v) % threads_], false, b)) f(b);
+  }
+
+ private:
+  struct alignas(64) Share {  // a cache line each: the owners update them at every block
+    std::atomic<std::uint64_t> range{0};  // blocks [front, back), front in the low 32 bits
+  };
+  static std::uint64_t pack(int front, int back) {
+    return static_cast<std::uint64_t>(front) | static_cast<std::uint64_t>(back) << 32;
+  }
+  static bool take(Share& s, bool front, int& b) {
+    std::uint64_t r = s.range.load(std::memory_order_relaxed);
+    for (;;) {
+      const int lo = static_cast<int>(r & 0xffffffffu), hi = static_cast<int>(r >> 32);
+      if (lo >= hi) return false;
+      // Relaxed: the barriers around the passes order the blocks' data.
+      if (s.range.compare_exchange_weak(r, front ? pack(lo + 1, hi) : pack(lo, hi - 1),
+                                        std::memory_order_relaxed)) {
+        b = front ? lo : hi - 1;
+        return true;
+      }
+    }
+  }
+  int threads_ = 0;
+  std::unique_ptr<Share[]> shares_;
+};
+
 template <class V>
 class CpuEngine final : public DemEngine {
  public:
   explicit CpuEngine(const EngineConfig& c) : config_(c) {
     count_ = static_cast<int>(c.particles.size());
     threads_ = c.threads > 0 ? c.threads : omp_get_max_threads();
+    pair_shares_ = BlockShares(threads_);
+    particle_shares_ = BlockShares(threads_);
     const auto [rmin_it, rmax_it] = std::minmax_element(c.radius.begin(), c.radius.end());
     r_min_ = *rmin_it;
     r_max_ = *rmax_it;
@@ -434,13 +485,15 @@ class CpuEngine final : public DemEngine {
         particle_block(b, batches_[0]);
       }
     } else {
+      pair_shares_.reset(blocks);
+      particle_shares_.reset(blocks);
 #pragma omp parallel num_threads(threads_)
       {
-        ContactBatch& batch = batches_[static_cast<std::size_t>(omp_get_thread_num())];
-#pragma omp for schedule(static)
-        for (int b = 0; b < blocks; ++b) pair_block(b, batch);
-#pragma omp for schedule(static)
-        for (int b = 0; b < blocks; ++b) particle_block(b, batch);
+        const int t = omp_get_thread_num();
+        ContactBatch& batch = batches_[static_cast<std::size_t>(t)];
+        pair_shares_.run(t, [&](int b) { pair_block(b, batch); });
+#pragma omp barrier
+        particle_shares_.run(t, [&](int b) { particle_block(b, batch); });
       }
     }
     totals_ = StepTotals{};
@@ -818,6 +871,7 @@ class CpuEngine final : public DemEngine {
   bool needs_rebuild_ = true;
   std::vector<StepTotals> block_totals_;
   std::vector<ContactBatch> batches_;  // one per thread
+  BlockShares pair_shares_, particle_shares_;
   StepTotals totals_;
 };
 

@@ -219,10 +219,13 @@ inline bool build_reverse_lists(const NeighbourBuildArgs& a) {
   for (int i = 0; i < a.count; ++i)
     for (int k = 0; k < a.neighbour_count[i]; ++k) {
       const int j = a.neighbours[a.slot_start[i] + k];
-      const int n = a.reverse_count[j]++;
-      if (n == a.max_neighbours) fits = false;
-      if (a.reverse && n < a.max_neighbours)
-        a.reverse[a.reverse_start[j] + n] = reverse_entry(i, k);
+      const int n = a.reverse_count[j];
+      if (n == a.max_neighbours) {  // capped, as in build_reverse_of()
+        fits = false;
+        continue;
+      }
+      if (a.reverse) a.reverse[a.reverse_start[j] + n] = reverse_entry(i, k);
+      a.reverse_count[j] = n + 1;
     }
   return fits;
 }

@@ -828,7 +828,7 @@ class CpuEngine final : public DemEngine {
           block_slots, slot_start_[std::min(count_, b + kBlock)] - slot_start_[b]);
     batches_.resize(static_cast<std::size_t>(threads_));
     for (auto& batch : batches_)
-      if (batch.particle.size() < block_slots || batch.gap.empty())
+      if (batch.particle.size() < block_slots + kLanes || batch.gap.empty())  // + padding
         batch.resize(block_slots + block_slots / 4,
                      static_cast<std::size_t>(std::min(count_, kBlock)) * kMaxWallContacts);
     grow(neighbours_, slots);

@@ -171,6 +171,29 @@ TEST_CASE("lists counted first and written compactly equal the fixed-stride list
   }
 }
 
+TEST_CASE("reverse lists swept in one pass stop at the slot limit as the per-particle build does") {
+  constexpr int kCount = 300, kMax = 32, kCap = 2;
+  Cloud c = sorted_cloud(kCount, 0.02, 0.0025, 0.00075);
+  c.max = kMax;
+  NeighbourBuildArgs b = c.args();
+  for (int i = 0; i < kCount; ++i) REQUIRE(build_neighbours_of(i, b));
+  // Reverse lists of at most kCap slots, in their own arrays, from each builder.
+  b.max_neighbours = kCap;
+  std::vector<std::int32_t> start(kCount + 1), swept(kCount * kCap, -1), swept_count(kCount),
+      each(kCount * kCap, -1), each_count(kCount);
+  for (int i = 0; i <= kCount; ++i) start[i] = i * kCap;
+  b.reverse_start = start.data();
+  b.reverse = swept.data(), b.reverse_count = swept_count.data();
+  CHECK_FALSE(build_reverse_lists(b));
+  b.reverse = each.data(), b.reverse_count = each_count.data();
+  bool fits = true;
+  for (int j = 0; j < kCount; ++j) fits &= build_reverse_of(j, b);
+  CHECK_FALSE(fits);
+  CHECK(*std::max_element(swept_count.begin(), swept_count.end()) == kCap);
+  CHECK(swept_count == each_count);
+  CHECK(swept == each);
+}
+
 // Two particles that stay in contact across a rebuild. `swap`: the cell sort exchanges them, so
 // that the pair's owner (the lower index) changes.
 std::vector<double> carried_history(bool swap, bool live) {

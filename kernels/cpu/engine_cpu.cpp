@@ -68,7 +68,7 @@ void permute(std::vector<T>& a, const std::vector<std::int32_t>& order) {
 // (roots, divisions, the friction cone) are the bulk of a step, and one contact at a time they
 // are chains of dependent long-latency instructions. Entries are in particle and slot order.
 struct ContactBatch {
-  // Pairs: owner and forward slot. Walls: particle and wall slot.
+  // Pairs: owner and forward slot. Walls: particle and wall-history slot (kWallSlots each).
   std::vector<std::int32_t> particle, slot;
   std::vector<std::int32_t> had;       // the slot holds history (32 bits: see kLanes)
   std::vector<double> xi[3];           // tangential history, in and then out
@@ -102,11 +102,10 @@ struct ContactBatch {
   // goes through the batch so that it can be updated in place: a padding entry must not read
   // its slot after entry n - 1 has rewritten it.
   int gather(int n, const double* history, bool walls) {
-    const std::int32_t *const p = particle.data(), *const s = slot.data();
     if (history) {
 #pragma omp simd
       for (int e = 0; e < n; ++e) {
-        const Vec3 h = slot_history(history, walls ? p[e] * kWallSlots + s[e] : s[e], had[e] != 0);
+        const Vec3 h = slot_history(history, slot[e], had[e] != 0);
         xi[0][e] = h.x, xi[1][e] = h.y, xi[2][e] = h.z;
       }
     }
@@ -120,10 +119,8 @@ struct ContactBatch {
     return end;
   }
   // Writes the new history of entries [0, n) back to `history`.
-  void scatter(int n, double* history, bool walls) const {
-    for (int e = 0; e < n; ++e)
-      store3(history, walls ? particle[e] * kWallSlots + slot[e] : slot[e],
-             {xi[0][e], xi[1][e], xi[2][e]});
+  void scatter(int n, double* history) const {
+    for (int e = 0; e < n; ++e) store3(history, slot[e], {xi[0][e], xi[1][e], xi[2][e]});
   }
 };
 
@@ -160,7 +157,7 @@ template <class V>
     dissipated_normal += e < pairs ? normal : 0.0;
     dissipated_tangential += e < pairs ? tangential : 0.0;
   }
-  if constexpr (history) batch.scatter(pairs, a.history.neighbour_out, false);
+  if constexpr (history) batch.scatter(pairs, a.history.neighbour_out);
   total.dissipated_normal += dissipated_normal;
   total.dissipated_tangential += dissipated_tangential;
 }
@@ -193,7 +190,7 @@ template <class V>
     out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
     out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
   }
-  if constexpr (history) batch.scatter(walls, a.history.wall_out, true);
+  if constexpr (history) batch.scatter(walls, a.history.wall_out);
   sum.dissipated_normal += dissipated_normal;
   sum.dissipated_tangential += dissipated_tangential;
 }
@@ -304,7 +301,7 @@ PDSIM_COLD int list_walls(int i, const ParticleStepArgs& a, ContactBatch& batch,
   if constexpr (V::Tangential::kHistory) with_history = a.history.wall_mask_in[i];
   touching_walls<V>(i, a, sum, [&](int slot, double gap, Vec3 normal) {
     batch.particle[walls] = i;
-    batch.slot[walls] = slot;
+    batch.slot[walls] = i * kWallSlots + slot;  // its history's
     batch.had[walls] = with_history >> slot & 1;
     batch.gap[walls] = gap;
     batch.normal[0][walls] = normal.x;
@@ -503,8 +500,7 @@ class CpuEngine final : public DemEngine {
   }
 
   void accept() override {
-    if (config_.recompute) current_ ^= 1;
-    if (config_.recompute) history_current_ ^= 1;
+    if (config_.recompute) current_ ^= 1, history_current_ ^= 1;  // the back buffers
     if (lists_expired(travel_, totals_.speed_sq, dt_, skin_)) needs_rebuild_ = true;
   }
 

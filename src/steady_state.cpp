@@ -1,0 +1,297 @@
+#include "src/steady_state.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "src/common.hpp"
+
+namespace pdsim {
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+double mean_of(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x;
+  return s / static_cast<double>(v.size());
+}
+
+double sample_sd(const std::vector<double>& v) {
+  if (v.size() < 2) return 0;
+  const double m = mean_of(v);
+  double s = 0;
+  for (double x : v) s += (x - m) * (x - m);
+  return std::sqrt(s / static_cast<double>(v.size() - 1));
+}
+
+// Means of consecutive batches of `length` values of v[first..], the earliest remainder dropped.
+std::vector<double> batch_means(const std::vector<double>& v, int first, int length) {
+  const int n = static_cast<int>(v.size()) - first, count = n / length;
+  std::vector<double> means;
+  for (int b = 0; b < count; ++b) {
+    double s = 0;
+    const int from = first + (n - count * length) + b * length;
+    for (int k = 0; k < length; ++k) s += v[static_cast<std::size_t>(from + k)];
+    means.push_back(s / length);
+  }
+  return means;
+}
+
+// Quantiles of Student's t for dof 1..30 (tables), beyond by the Cornish-Fisher expansion about
+// the normal quantile z (Abramowitz & Stegun 26.7.5).
+double student_t(int dof, const double (&table)[30], double z) {
+  if (dof < 1) return kInfinity;
+  if (dof <= 30) return table[dof - 1];
+  const double n = dof;
+  const double z3 = z * z * z, z5 = z3 * z * z, z7 = z5 * z * z;
+  return z + (z3 + z) / (4 * n) + (5 * z5 + 16 * z3 + 3 * z) / (96 * n * n) +
+         (3 * z7 + 19 * z5 + 17 * z3 - 15 * z) / (384 * n * n * n);
+}
+
+// Integrated autocorrelation time tau = 1 + 2 sum rho_k of zero-mean deviations (the sum of
+// their components' lagged products), summed by Geyer's initial monotone sequence (Statist.
+// Sci. 7:473, 1992): pairs rho_2m + rho_2m+1 while they stay positive and decrease. An
+// exponential correlation (AR(1), a bed that relaxes) gives (1 + phi) / (1 - phi); an
+// oscillating one (the structure ringing against the drive: a beat) cancels itself over its
+// period, although neighbouring periods correlate strongly. The variance of a mean of m values
+// is var tau / m. Also returns the lag-1 autocorrelation.
+double autocorrelation_time(const std::vector<std::vector<double>>& components, double* lag1) {
+  const int m = static_cast<int>(components[0].size());
+  auto lagged = [&](int lag) {
+    double sum = 0;
+    for (const auto& e : components)
+      for (int k = 0; k + lag < m; ++k)
+        sum += e[static_cast<std::size_t>(k)] * e[static_cast<std::size_t>(k + lag)];
+    return sum;
+  };
+  const double scatter = lagged(0);
+  *lag1 = 0;
+  if (!(scatter > 0)) return 1;
+  *lag1 = lagged(1) / scatter;
+  double sum = 0, previous = kInfinity;
+  for (int k = 0; 2 * k + 1 < m; ++k) {
+    const double pair = std::min((lagged(2 * k) + lagged(2 * k + 1)) / scatter, previous);
+    if (pair <= 0) break;
+    sum += pair;
+    previous = pair;
+  }
+  return std::max(1.0, 2 * sum - 1);
+}
+
+// Least-squares slope of y_k against k (per period) and whether it differs from zero at the
+// 99 % level. The residuals' own autocorrelation time tau (a drift must not count as
+// correlation) widens the slope's variance by tau and leaves about m / tau independent values.
+// (A stricter level than the intervals': the test is repeated after every period, and a false
+// alarm only costs periods.)
+bool significant_slope(const std::vector<double>& y, double* slope) {
+  const int m = static_cast<int>(y.size());
+  if (m < 3) return false;
+  const double kbar = 0.5 * (m - 1), ybar = mean_of(y);
+  double skk = 0, sky = 0;
+  for (int k = 0; k < m; ++k) {
+    skk += (k - kbar) * (k - kbar);
+    sky += (k - kbar) * (y[static_cast<std::size_t>(k)] - ybar);
+  }
+  *slope = sky / skk;
+  std::vector<double> residual(static_cast<std::size_t>(m));
+  double squares = 0;
+  for (int k = 0; k < m; ++k) {
+    const double r = y[static_cast<std::size_t>(k)] - ybar - *slope * (k - kbar);
+    residual[static_cast<std::size_t>(k)] = r;
+    squares += r * r;
+  }
+  double lag1 = 0;
+  const double tau = autocorrelation_time({residual}, &lag1);
+  const double independent = m / tau;
+  if (independent < 3) return false;
+  const double se = std::sqrt(squares / (m - 2) * tau / skk);
+  return std::fabs(*slope) > student_t995(static_cast<int>(independent) - 2) * se;
+}
+
+}  // namespace
+
+double student_t975(int dof) {
+  static const double table[30] = {12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306,
+                                   2.262,  2.228, 2.201, 2.179, 2.160, 2.145, 2.131, 2.120,
+                                   2.110,  2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064,
+                                   2.060,  2.056, 2.052, 2.048, 2.045, 2.042};
+  return student_t(dof, table, 1.959963984540054);
+}
+
+double student_t995(int dof) {
+  static const double table[30] = {63.657, 9.925, 5.841, 4.604, 4.032, 3.707, 3.499, 3.355,
+                                   3.250,  3.169, 3.106, 3.055, 3.012, 2.977, 2.947, 2.921,
+                                   2.898,  2.878, 2.861, 2.845, 2.831, 2.819, 2.807, 2.797,
+                                   2.787,  2.779, 2.771, 2.763, 2.756, 2.750};
+  return student_t(dof, table, 2.5758293035489004);
+}
+
+MeanInterval batch_mean_interval(const std::vector<double>& series, int first, int batch_length) {
+  MeanInterval out;
+  if (first >= static_cast<int>(series.size())) return {0, kInfinity};
+  const std::vector<double> retained(series.begin() + first, series.end());
+  out.mean = mean_of(retained);
+  const std::vector<double> means = batch_means(series, first, std::max(1, batch_length));
+  const int b = static_cast<int>(means.size());
+  const double sd = b >= 2 ? sample_sd(means) : sample_sd(retained);
+  out.half_width = sd == 0 ? 0 : b >= 2 ? student_t975(b - 1) * sd / std::sqrt(b) : kInfinity;
+  return out;
+}
+
+MeanInterval independent_mean_interval(const std::vector<double>& values) {
+  if (values.empty()) return {0, kInfinity};
+  const int r = static_cast<int>(values.size());
+  if (r < 2) return {values[0], kInfinity};
+  return {mean_of(values), student_t975(r - 1) * sample_sd(values) / std::sqrt(r)};
+}
+
+namespace {
+
+// Everything but the verdict: warm-up, mean, autocorrelation, intervals, drift.
+Stationary summarise(const std::vector<std::complex<double>>& series,
+                     const SteadyStateCriteria& criteria, int first) {
+  Stationary s;
+  const int n = static_cast<int>(series.size());
+  s.periods = n;
+  if (n < 2) return s;
+  // Values about the mean of the last half, so that sums of squares keep their digits.
+  std::complex<double> reference = 0;
+  for (int k = n / 2; k < n; ++k) reference += series[static_cast<std::size_t>(k)];
+  reference /= double(n - n / 2);
+  const double resolution = 0.1 * criteria.tolerance * std::abs(reference);
+  std::vector<std::complex<double>> x(series.size());
+  for (std::size_t k = 0; k < x.size(); ++k) x[k] = series[k] - reference;
+
+  // MSER truncation (White 1997) on the one-period values: the warm-up d minimises the squared
+  // standard error of the mean of what remains, sum |x_k - mean_d|^2 / (n - d)^2, with the
+  // resolution as a floor on every deviation so that a converged deterministic response stops
+  // at its first resolved period instead of chasing rounding. d is sought in the first half
+  // only (White's own rule): on a smooth, correlated series, such as a structure ringing
+  // against the drive, the statistic keeps falling towards the last few periods, whose naive
+  // variance says nothing. A transient that lasts into the second half shows as a drift there.
+  int best = 0;
+  double best_value = kInfinity, sum_x_re = 0, sum_x_im = 0, sum_sq = 0;
+  for (int d = n - 1; d >= 0; --d) {
+    const std::complex<double> v = x[static_cast<std::size_t>(d)];
+    sum_x_re += v.real();
+    sum_x_im += v.imag();
+    sum_sq += std::norm(v);
+    const double m = n - d;
+    if (d > n / 2) continue;
+    const double ss = std::max(0.0, sum_sq - (sum_x_re * sum_x_re + sum_x_im * sum_x_im) / m);
+    const double mser = (ss + m * resolution * resolution) / (m * m);
+    if (mser <= best_value) {  // the earliest of equal minima
+      best_value = mser;
+      best = d;
+    }
+  }
+  if (first >= 0) best = std::min(first, n - 1);
+  s.discarded = best;
+
+  const int retained = n - best;
+  std::complex<double> mean = 0;
+  for (int k = best; k < n; ++k) mean += x[static_cast<std::size_t>(k)];
+  mean /= double(retained);
+  s.mean = mean + reference;
+  // How long the retained periods remember (autocorrelation_time); deviations below the
+  // resolution are none.
+  std::vector<std::vector<double>> deviation(
+      2, std::vector<double>(static_cast<std::size_t>(retained)));
+  double scatter = 0;
+  for (int k = best; k < n; ++k) {
+    const std::complex<double> e = x[static_cast<std::size_t>(k)] - mean;
+    deviation[0][static_cast<std::size_t>(k - best)] = e.real();
+    deviation[1][static_cast<std::size_t>(k - best)] = e.imag();
+    scatter += std::norm(e);
+  }
+  const double tau =
+      scatter > retained * resolution * resolution ? autocorrelation_time(deviation, &s.lag1) : 1.0;
+  s.tau = tau;
+  // Batch means of 2 tau periods (rounded up): nearly independent for any correlation shape
+  // (adjacent batches of an AR(1) correlate by 0.13 at phi = 0.5). At least 5 periods when
+  // there is scatter: tau from a few dozen periods is biased low, and the test runs after every
+  // period, so an early underestimate would stop a run with too narrow an interval.
+  const int shortest = scatter > retained * resolution * resolution ? 5 : 1;
+  s.batch_length = std::max(shortest, static_cast<int>(std::ceil(2 * tau - 1e-9)));
+
+  // Components along and across the mean: their intervals are those of |H| and of arg H.
+  const double size = std::abs(s.mean);
+  const std::complex<double> along = size > 0 ? s.mean / size : 1.0;
+  std::vector<double> amplitude(static_cast<std::size_t>(n)), across(static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) {
+    const std::complex<double> turned = std::conj(along) * series[static_cast<std::size_t>(k)];
+    amplitude[static_cast<std::size_t>(k)] = turned.real();
+    across[static_cast<std::size_t>(k)] = turned.imag();
+  }
+  const std::vector<double> a = batch_means(amplitude, best, s.batch_length);
+  const std::vector<double> p = batch_means(across, best, s.batch_length);
+  s.batches = static_cast<int>(a.size());
+  s.correlated = s.batch_length > 1 && s.batches < criteria.min_batches;
+  if (s.batches >= 2) {
+    const double t = student_t975(s.batches - 1), root = std::sqrt(double(s.batches));
+    s.amplitude_ci = t * sample_sd(a) / root;
+    const double spread = t * sample_sd(p) / root;
+    s.phase_ci = size > 0 ? spread / size : (spread == 0 ? 0 : kPi);
+  } else {
+    s.amplitude_ci = s.phase_ci = kInfinity;
+  }
+  // A drift matters when it is significant and moves the mean by half the tolerance across the
+  // retained periods.
+  double slope_a = 0, slope_p = 0;
+  const double relevant = 0.5 * criteria.tolerance * size;
+  const std::vector<double> kept_a(amplitude.begin() + best, amplitude.end());
+  const std::vector<double> kept_p(across.begin() + best, across.end());
+  const bool drift_a =
+      significant_slope(kept_a, &slope_a) && std::fabs(slope_a) * retained > relevant;
+  const bool drift_p =
+      significant_slope(kept_p, &slope_p) && std::fabs(slope_p) * retained > relevant;
+  s.trend = drift_a || drift_p;
+
+  return s;
+}
+
+}  // namespace
+
+Stationary analyse_periods(const std::vector<std::complex<double>>& series,
+                           const SteadyStateCriteria& criteria, int first) {
+  Stationary s = summarise(series, criteria, first);
+  const int n = s.periods;
+  const double tol = criteria.tolerance, size = std::abs(s.mean);
+  char text[64];
+  if (n < 2) {
+    s.reason = "fewer than 2 periods";
+  } else if (n < criteria.min_periods) {
+    s.reason = "fewer than min_periods (" + std::to_string(criteria.min_periods) + ") periods";
+  } else if (s.trend) {
+    s.reason = "drifting";
+  } else if (s.batches < criteria.min_batches) {
+    std::snprintf(text, sizeof text, "%.1f", s.tau);
+    s.reason = s.correlated
+                   ? std::string("periods too correlated (autocorrelation time ") + text +
+                         " periods) for " + std::to_string(criteria.min_batches) + " batches of " +
+                         std::to_string(s.batch_length) + " periods"
+                   : "too few periods for " + std::to_string(criteria.min_batches) + " batches";
+  } else if (s.amplitude_ci > tol * size || s.phase_ci > tol) {
+    s.reason = "interval wider than the tolerance";
+  } else if (first < 0) {
+    // The mean must also hold still. The test runs after every period, so a slow drift that
+    // each single look misses would pass at some look; the mean of the first half of the
+    // periods, judged the same way, must lie within 0.7 of this interval (or the resolution).
+    const int earlier = (n + 1) / 2;
+    if (earlier < n) {
+      const Stationary before = summarise({series.begin(), series.begin() + earlier}, criteria, -1);
+      const double moved = std::abs(s.mean - before.mean);
+      if (moved > std::max(0.7 * std::max(s.amplitude_ci, s.phase_ci * size), 0.1 * tol * size)) {
+        std::snprintf(text, sizeof text, "%.2g %%", 100 * moved / std::max(size, 1e-300));
+        s.reason = "still moving (the mean moved " + std::string(text) + " since period " +
+                   std::to_string(earlier) + ")";
+      }
+    }
+  }
+  s.converged = s.reason.empty();
+  return s;
+}
+
+}  // namespace pdsim

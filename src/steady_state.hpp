@@ -1,0 +1,59 @@
+// Steady state of a periodically driven response, judged as statistics: one value per excitation
+// period (the period's first harmonic, or its dissipated energy) forms a series whose warm-up is
+// found and discarded (MSER), whose remaining drift is tested, and whose stationary mean is given
+// with a 95 % confidence interval from batch means, batches two autocorrelation times long. A
+// deterministic response converges by the same rule, because its scatter is zero; a chaotic one
+// converges when its mean is known to the tolerance asked for.
+#pragma once
+
+#include <complex>
+#include <string>
+#include <vector>
+
+namespace pdsim {
+
+struct SteadyStateCriteria {
+  double tolerance = 1e-2;  // relative 95 % half-width of |H| wanted (and of the phase, rad)
+  int min_periods = 10;     // never converged before this many periods
+  int min_batches = 5;      // batch means needed for an interval
+};
+
+// The stationary part of a per-period series of complex first harmonics H_k.
+struct Stationary {
+  int periods = 0;            // in the series
+  int discarded = 0;          // warm-up periods dropped (MSER truncation, in the first half)
+  int batch_length = 0;       // periods per batch: 2 tau, rounded up
+  int batches = 0;            // batches in the interval (the earliest remainder is not used)
+  double lag1 = 0;            // lag-1 autocorrelation of the retained periods
+  double tau = 1;             // their integrated autocorrelation time, periods
+  std::complex<double> mean;  // over the retained periods
+  double amplitude_ci = 0, phase_ci = 0;  // 95 % half-widths of |mean| (its unit) and arg (rad)
+  bool correlated = false;  // too few batches of the needed length: run longer (or realisations)
+  bool trend = false;       // the retained periods drift, significantly and by a relevant amount
+  bool converged = false;
+  std::string reason;  // why not converged ("" when converged)
+};
+
+// Analyses H_0..H_{n-1}. Deviations below a tenth of tolerance x |H| are resolution, not signal:
+// they neither hold up the warm-up nor count as drift. With first >= 0 the warm-up is taken to
+// be periods 0..first-1 instead of being searched for (settle.average_periods).
+Stationary analyse_periods(const std::vector<std::complex<double>>& series,
+                           const SteadyStateCriteria& criteria, int first = -1);
+
+// Mean and 95 % half-width of a real per-period series over periods first..n-1, in batches of
+// `batch_length` (the earliest remainder dropped). A single batch gives a zero half-width only
+// when the series is constant, otherwise infinity.
+struct MeanInterval {
+  double mean = 0, half_width = 0;
+};
+MeanInterval batch_mean_interval(const std::vector<double>& series, int first, int batch_length);
+
+// Mean of independent values with the 95 % Student-t half-width (realisations of a point).
+MeanInterval independent_mean_interval(const std::vector<double>& values);
+
+// Two-sided 95 % and 99 % quantiles of Student's t with `dof` degrees of freedom (infinity for
+// dof < 1).
+double student_t975(int dof);
+double student_t995(int dof);
+
+}  // namespace pdsim

@@ -1,0 +1,185 @@
+// The steady-state statistic on synthetic series whose truth is known by construction: a
+// stationary AR(1) noise about a known mean (accepted, its interval covering the mean at about
+// the nominal 95 %), the same noise with a linear drift and a slowly decaying geometric
+// transient (both refused), and deterministic series (converged at once, zero interval).
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <random>
+
+#include "src/common.hpp"
+#include "src/steady_state.hpp"
+
+using namespace pdsim;
+
+namespace {
+
+const std::complex<double> kTruth(1.2e-3, -0.5e-3);  // m, a first harmonic
+
+// AR(1) noise e_k = phi e_{k-1} + sqrt(1 - phi^2) sigma w_k on both components (stationary from
+// the first value), relative scatter `sigma` of |kTruth|.
+std::vector<std::complex<double>> ar1_series(int n, double phi, double sigma,
+                                             std::mt19937_64& rng) {
+  std::normal_distribution<double> w(0.0, sigma * std::abs(kTruth));
+  std::complex<double> e(w(rng), w(rng));
+  const double innovation = std::sqrt(1 - phi * phi);
+  std::vector<std::complex<double>> out;
+  for (int k = 0; k < n; ++k) {
+    out.push_back(kTruth + e);
+    e = phi * e + innovation * std::complex<double>(w(rng), w(rng));
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("autocorrelation time: (1 + phi) / (1 - phi) for an AR(1), short for a beat") {
+  std::mt19937_64 rng(17);
+  const Stationary ar1 = analyse_periods(ar1_series(20000, 0.5, 0.02, rng), {1e-2, 10, 5});
+  CHECK(ar1.tau == doctest::Approx(3.0).epsilon(0.1));
+  CHECK(ar1.batch_length == static_cast<int>(std::ceil(2 * ar1.tau)));
+  CHECK(ar1.lag1 == doctest::Approx(0.5).epsilon(0.05));
+  // A structure ringing against the drive: the harmonic turns about its mean with a 20-period
+  // beat. Neighbouring periods correlate by cos(2 pi / 20) = 0.95, yet over a beat the
+  // deviations cancel, and Geyer's sum stops at the first negative pair.
+  std::vector<std::complex<double>> beat;
+  for (int k = 0; k < 400; ++k) beat.push_back(kTruth * (1.0 + 0.03 * std::cos(2 * kPi * k / 20)));
+  const Stationary b = analyse_periods(beat, {2e-2, 10, 5});
+  CHECK(b.lag1 > 0.9);
+  CHECK(b.tau < 10);
+  CHECK(b.converged);
+  CHECK(std::abs(b.mean - kTruth) < 0.003 * std::abs(kTruth));
+  CHECK(std::fabs(std::abs(b.mean) - std::abs(kTruth)) <= b.amplitude_ci);
+}
+
+TEST_CASE("stationary AR(1) noise: accepted, and its interval covers the mean at about 95 %") {
+  std::mt19937_64 rng(20261201);
+  const SteadyStateCriteria criteria{1e-2, 10, 5};
+  const int trials = 400;
+  int converged = 0, covered_amplitude = 0, covered_phase = 0, trends = 0;
+  for (int trial = 0; trial < trials; ++trial) {
+    const Stationary s = analyse_periods(ar1_series(200, 0.5, 0.02, rng), criteria);
+    converged += s.converged;
+    trends += s.trend;
+    covered_amplitude += std::fabs(std::abs(s.mean) - std::abs(kTruth)) <= s.amplitude_ci;
+    covered_phase += std::fabs(std::arg(s.mean) - std::arg(kTruth)) <= s.phase_ci;
+  }
+  MESSAGE("AR(1) phi 0.5, 2 % scatter, 200 periods: "
+          << converged << "/" << trials << " converged, amplitude interval covers "
+          << covered_amplitude << ", phase " << covered_phase << ", trends " << trends);
+  // One look refuses some stationary series as "still moving" (its first half's mean against
+  // the whole); a run looks again after the next period (below).
+  CHECK(converged >= 0.5 * trials);
+  CHECK(trends <= 0.06 * trials);  // a 1 % two-sided test, in two components
+  CHECK(covered_amplitude >= 0.88 * trials);
+  CHECK(covered_amplitude <= 0.99 * trials);
+  CHECK(covered_phase >= 0.88 * trials);
+  CHECK(covered_phase <= 0.99 * trials);
+
+  // Judged after every period and stopped at the first "converged", as a run does: stopping
+  // early costs some coverage (an early look underestimates the correlation), not much.
+  int stopped = 0, covered = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const auto series = ar1_series(300, 0.5, 0.02, rng);
+    for (std::size_t n = 10; n <= series.size(); ++n) {
+      const Stationary s =
+          analyse_periods({series.begin(), series.begin() + static_cast<long>(n)}, criteria);
+      if (!s.converged) continue;
+      ++stopped;
+      covered += std::fabs(std::abs(s.mean) - std::abs(kTruth)) <= s.amplitude_ci;
+      break;
+    }
+  }
+  MESSAGE("stopped at the first converged look: " << stopped << "/200, covered " << covered);
+  CHECK(stopped >= 190);
+  CHECK(covered >= 0.8 * stopped);
+}
+
+TEST_CASE("the same noise with a linear drift is refused, checked after every period") {
+  // As a run judges it: after each period from the 10th on, up to 200 periods, while the
+  // harmonic drifts by 20 % of |H| every 100 periods (ten times the periods' scatter; the
+  // issue's 15 Hz point rose 8.9 % in 12).
+  std::mt19937_64 rng(7);
+  const SteadyStateCriteria criteria{1e-2, 10, 5};
+  int accepted = 0;
+  const int trials = 100;
+  for (int trial = 0; trial < trials; ++trial) {
+    auto series = ar1_series(200, 0.5, 0.02, rng);
+    for (std::size_t k = 0; k < series.size(); ++k)
+      series[k] += 0.2 * kTruth * (static_cast<double>(k) / 100.0);
+    for (std::size_t n = 10; n <= series.size(); ++n)
+      if (analyse_periods({series.begin(), series.begin() + static_cast<long>(n)}, criteria)
+              .converged) {
+        ++accepted;
+        break;
+      }
+  }
+  MESSAGE("drifting: " << accepted << "/" << trials << " runs accepted at some period");
+  CHECK(accepted <= 0.05 * trials);
+}
+
+TEST_CASE("a slowly decaying geometric transient is refused, a decayed one is cut off") {
+  const SteadyStateCriteria criteria{1e-2, 10, 5};
+  // A lightly damped structure ringing down: H_k = H + c rho^k. With rho = 0.987 (a 5 s time
+  // constant at 15 Hz) 40 periods see a near-linear approach, whatever its noise.
+  std::mt19937_64 rng(11);
+  int converged = 0;
+  for (int trial = 0; trial < 100; ++trial) {
+    auto series = ar1_series(40, 0.0, 0.005, rng);
+    for (std::size_t k = 0; k < series.size(); ++k)
+      series[k] += 0.3 * kTruth * std::pow(0.987, static_cast<double>(k));
+    const Stationary s = analyse_periods(series, criteria);
+    converged += s.converged;
+  }
+  CHECK(converged == 0);
+  // Noise-free: still refused (the old per-period test passed when |rho| looked >= 1).
+  std::vector<std::complex<double>> ringing;
+  for (int k = 0; k < 40; ++k) ringing.push_back(kTruth * (1 + 0.3 * std::pow(0.987, k)));
+  CHECK_FALSE(analyse_periods(ringing, criteria).converged);
+  // A fast decay (rho = 0.5) is over after a few periods: those are discarded and the rest is
+  // the deterministic steady state, converged with a zero interval.
+  std::vector<std::complex<double>> decayed;
+  for (int k = 0; k < 40; ++k) decayed.push_back(kTruth * (1 + 0.5 * std::pow(0.5, k)));
+  const Stationary s = analyse_periods(decayed, criteria);
+  CHECK(s.converged);
+  CHECK(s.discarded >= 4);
+  CHECK(s.discarded <= 20);  // never more than half
+  CHECK(std::abs(s.mean - kTruth) < 1e-3 * std::abs(kTruth));
+  CHECK(s.amplitude_ci < 1e-3 * std::abs(kTruth));
+}
+
+TEST_CASE("a constant response converges at min_periods with a zero interval") {
+  const SteadyStateCriteria criteria{1e-3, 10, 5};
+  std::vector<std::complex<double>> series(9, kTruth);
+  CHECK_FALSE(analyse_periods(series, criteria).converged);  // before min_periods
+  series.push_back(kTruth);
+  const Stationary s = analyse_periods(series, criteria);
+  CHECK(s.converged);
+  CHECK(s.discarded == 0);
+  CHECK(s.amplitude_ci <= 1e-15 * std::abs(kTruth));  // rounding of the projection
+  CHECK(s.phase_ci <= 1e-15);
+  CHECK(std::abs(s.mean - kTruth) <= 1e-15 * std::abs(kTruth));
+}
+
+TEST_CASE("strongly correlated periods need realisations or a longer run") {
+  // Slow regime changes of a bed near resonance: lag-1 autocorrelation 0.95, 5 % scatter.
+  std::mt19937_64 rng(3);
+  int converged = 0, correlated = 0;
+  for (int trial = 0; trial < 50; ++trial) {
+    const Stationary s = analyse_periods(ar1_series(100, 0.95, 0.05, rng), {1e-2, 10, 5});
+    converged += s.converged;
+    correlated += s.correlated;
+  }
+  CHECK(converged == 0);
+  CHECK(correlated >= 25);  // mostly said so; otherwise a drift or a warm-up is seen
+}
+
+TEST_CASE("independent realisations: the Student-t interval of their mean") {
+  const MeanInterval m = independent_mean_interval({1.0, 2.0, 3.0});
+  CHECK(m.mean == 2.0);
+  CHECK(m.half_width == doctest::Approx(4.303 * 1.0 / std::sqrt(3.0)));
+  CHECK(std::isinf(independent_mean_interval({1.0}).half_width));
+  const MeanInterval b = batch_mean_interval({5, 1, 3, 1, 3, 1, 3}, 1, 2);  // batches 2, 2, 2
+  CHECK(b.mean == 2.0);
+  CHECK(b.half_width == 0);
+}

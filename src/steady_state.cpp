@@ -237,6 +237,20 @@ Stationary summarise(const std::vector<std::complex<double>>& series,
   } else {
     s.amplitude_ci = s.phase_ci = kInfinity;
   }
+  // Periods that never leave a narrow band bound their mean by the band, however long they
+  // remember: a response that creeps by a fraction of the tolerance needs no batches (but at
+  // least min_periods of them).
+  double band_a = 0, band_p = 0;
+  for (int k = best; k < n; ++k) {
+    band_a = std::max(band_a, std::fabs(amplitude[static_cast<std::size_t>(k)] - size));
+    band_p = std::max(band_p, std::fabs(across[static_cast<std::size_t>(k)]));
+  }
+  s.within_band = retained >= criteria.min_periods &&
+                  std::max(band_a, band_p) <= 0.5 * criteria.tolerance * size;
+  if (s.within_band) {
+    s.amplitude_ci = std::min(s.amplitude_ci, band_a);
+    s.phase_ci = std::min(s.phase_ci, size > 0 ? band_p / size : 0.0);
+  }
   // A drift matters when it is significant and moves the mean by half the tolerance across the
   // retained periods.
   double slope_a = 0, slope_p = 0;
@@ -266,7 +280,7 @@ Stationary analyse_periods(const std::vector<std::complex<double>>& series,
     s.reason = "fewer than min_periods (" + std::to_string(criteria.min_periods) + ") periods";
   } else if (s.trend) {
     s.reason = "drifting";
-  } else if (s.batches < criteria.min_batches) {
+  } else if (s.batches < criteria.min_batches && !s.within_band) {
     std::snprintf(text, sizeof text, "%.1f", s.tau);
     s.reason = s.correlated
                    ? std::string("periods too correlated (autocorrelation time ") + text +
@@ -276,15 +290,20 @@ Stationary analyse_periods(const std::vector<std::complex<double>>& series,
   } else if (s.amplitude_ci > tol * size || s.phase_ci > tol) {
     s.reason = "interval wider than the tolerance";
   } else if (first < 0) {
-    // The mean must also hold still. The test runs after every period, so a slow drift that
-    // each single look misses would pass at some look; the mean of the first half of the
-    // periods, judged the same way, must lie within 0.7 of this interval (or the resolution).
+    // The mean must also hold still. The test runs after every period, so a slow drift, or a
+    // wander slower than the periods' autocorrelation shows, would pass at some look: the mean
+    // of the first half of the periods, judged the same way, is compared with the whole's, and
+    // their difference widens the interval (it is direct evidence of how well the mean is known).
     const int earlier = (n + 1) / 2;
     if (earlier < n) {
       const Stationary before = summarise({series.begin(), series.begin() + earlier}, criteria, -1);
-      const double moved = std::abs(s.mean - before.mean);
-      if (moved > std::max(0.7 * std::max(s.amplitude_ci, s.phase_ci * size), 0.1 * tol * size)) {
-        std::snprintf(text, sizeof text, "%.2g %%", 100 * moved / std::max(size, 1e-300));
+      const std::complex<double> moved = s.mean - before.mean;
+      const std::complex<double> along = size > 0 ? s.mean / size : 1.0;
+      const std::complex<double> turned = std::conj(along) * moved;
+      s.amplitude_ci = std::max(s.amplitude_ci, std::fabs(turned.real()));
+      s.phase_ci = std::max(s.phase_ci, size > 0 ? std::fabs(turned.imag()) / size : 0.0);
+      if (s.amplitude_ci > tol * size || s.phase_ci > tol) {
+        std::snprintf(text, sizeof text, "%.2g %%", 100 * std::abs(moved) / std::max(size, 1e-300));
         s.reason = "still moving (the mean moved " + std::string(text) + " since period " +
                    std::to_string(earlier) + ")";
       }

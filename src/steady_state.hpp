@@ -15,7 +15,7 @@ namespace pdsim {
 struct SteadyStateCriteria {
   double tolerance = 1e-2;  // relative 95 % half-width of |H| wanted (and of the phase, rad)
   int min_periods = 10;     // never converged before this many periods
-  int min_batches = 5;      // batch means needed for an interval
+  int min_batches = 4;      // batch means needed for an interval
 };
 
 // The stationary part of a per-period series of complex first harmonics H_k.
@@ -28,8 +28,9 @@ struct Stationary {
   double tau = 1;             // their integrated autocorrelation time, periods
   std::complex<double> mean;  // over the retained periods
   double amplitude_ci = 0, phase_ci = 0;  // 95 % half-widths of |mean| (its unit) and arg (rad)
-  bool correlated = false;  // too few batches of the needed length: run longer (or realisations)
-  bool trend = false;       // the retained periods drift, significantly and by a relevant amount
+  bool correlated = false;   // too few batches of the needed length: run longer (or realisations)
+  bool within_band = false;  // every retained period within tolerance / 2 of the mean
+  bool trend = false;        // the retained periods drift, significantly and by a relevant amount
   bool converged = false;
   std::string reason;  // why not converged ("" when converged)
 };

@@ -21,6 +21,12 @@ enum class NormalModel { linear, hertz };
 enum class TangentialModel { none, directional, history };
 enum class ExcitationKind { stepped_sine, sine, free_decay, prescribed };
 enum class ExcitationInput { force, base_displacement, base_acceleration };
+// How each stepped-sine frequency starts: `predicted` carries the particles on and puts the
+// structure on the steady state predicted from the damper's measured impedance; `carried` is the
+// physical stepped sine (the whole state carried on, nothing reset); `independent` starts every
+// frequency from the settled bed with the predicted structure state, so that they run side by
+// side.
+enum class FrequencyStart { predicted, carried, independent };
 enum class CouplingScheme { loose, interleaved, tight };
 enum class Backend { automatic, cpu, cuda };
 // The name of a backend in decks and on the command line.
@@ -96,14 +102,17 @@ struct ContactSpec {
   double rolling_friction = 0;  // dimensionless rolling resistance coefficient (0 = off)
 };
 
+// When a frequency's response counts as steady (src/steady_state.hpp): its per-period first
+// harmonics, after the warm-up is discarded, show no relevant drift and their mean is known to
+// `tolerance` (95 % half-width relative to the amplitude; the phase's half-width in rad).
 struct SettleSpec {
-  int min_periods = 10;
-  int max_periods = 200;
-  double tolerance = 1e-3;  // relative change of the first harmonic between periods
-  int average_periods = 4;  // periods averaged for the reported harmonics / power
-  int samples_per_period = 128;
+  int min_periods = 10;     // never converged before this many periods
+  int max_periods = 400;    // a frequency stops here, converged or not
+  double tolerance = 2e-2;  // relative 95 % half-width of the first-harmonic amplitude
+  int batches = 4;          // batch means an interval needs
+  int average_periods = 0;  // 0: the stationary periods found; N: the last N periods
+  int realisations = 1;     // independent runs (fill seeds seed, seed+1, ...) per frequency
 };
-
 struct MotionSpec {
   Vec3 axis{1, 0, 0};    // unit
   double amplitude = 0;  // m
@@ -116,10 +125,11 @@ struct ExcitationSpec {
   double amplitude = 0;             // N, m or m/s^2 according to `input`
   std::vector<double> frequencies;  // Hz, in the order they are run (prescribed: never empty)
   SettleSpec settle;
-  double frequency = 0;             // Hz, `sine`
-  double duration = 0;              // s, `sine`, `free_decay`, `prescribed`
-  double initial_displacement = 0;  // m, `free_decay`
-  MotionSpec motion;                // `prescribed`
+  FrequencyStart start = FrequencyStart::predicted;  // stepped_sine (prescribed: carried)
+  double frequency = 0;                              // Hz, `sine`
+  double duration = 0;                               // s, `sine`, `free_decay`, `prescribed`
+  double initial_displacement = 0;                   // m, `free_decay`
+  MotionSpec motion;                                 // `prescribed`
 };
 
 struct CouplingSpec {
@@ -136,6 +146,15 @@ struct SolverSpec {
   bool allow_unstable = false;
   int threads = 0;  // 0 = OpenMP default
 };
+
+// The particle bed settled under gravity, container at rest, before the excitation starts.
+struct BedSpec {
+  bool settle = false;    // default: true when gravity acts on particles
+  double speed = 1e-3;    // m/s: settled when no particle moves faster, for kBedHold_s
+  double max_time = 2.0;  // s of settling at most (then the run goes on, and says so)
+  std::string file;       // settled bed read from here when it exists, else written here
+};
+constexpr double kBedHold_s = 0.02;  // a falling particle exceeds any threshold sooner
 
 struct OutputSpec {
   std::string file;     // HDF5 path, relative to the working directory
@@ -164,6 +183,7 @@ struct Deck {
   ContactSpec contact;
   std::optional<Vec3> gravity;  // absent = no gravity
   ExcitationSpec excitation;
+  BedSpec bed;
   CouplingSpec coupling;
   SolverSpec solver;
   OutputSpec output;

@@ -76,8 +76,9 @@ Handle variable_string_type(const std::string& file) {
 
 // A scalar attribute; `value` points to one element of `memory_type`.
 void write_attribute(hid_t group, const std::string& name, hid_t file_type, hid_t memory_type,
-                     const void* value, const std::string& file) {
-  const std::string what = "write attribute /meta/" + name;
+                     const void* value, const std::string& file,
+                     const std::string& where = "/meta") {
+  const std::string what = "write attribute " + where + "/" + name;
   Handle space(H5Screate(H5S_SCALAR), H5Sclose, file, what);
   Handle attribute(
       H5Acreate2(group, name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
@@ -85,9 +86,16 @@ void write_attribute(hid_t group, const std::string& name, hid_t file_type, hid_
   check(H5Awrite(attribute.get(), memory_type, value), file, what);
 }
 
+void write_text_attribute(hid_t object, const std::string& name, const std::string& text,
+                          const std::string& file, const std::string& where) {
+  const Handle type = variable_string_type(file);
+  const char* chars = text.c_str();
+  write_attribute(object, name, type.get(), type.get(), &chars, file, where);
+}
+
 void write_column(hid_t group, const std::string& group_path, const std::string& name,
                   hid_t file_type, hid_t memory_type, const void* data, std::size_t size,
-                  const std::string& file) {
+                  const std::string& file, const char* units, const char* description) {
   const std::string what = "write dataset " + group_path + "/" + name;
   const hsize_t dims[1] = {static_cast<hsize_t>(size)};
   Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose, file, what);
@@ -97,6 +105,9 @@ void write_column(hid_t group, const std::string& group_path, const std::string&
   if (size > 0) {
     check(H5Dwrite(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), file, what);
   }
+  if (units) write_text_attribute(dataset.get(), "units", units, file, group_path + "/" + name);
+  if (description)
+    write_text_attribute(dataset.get(), "description", description, file, group_path + "/" + name);
 }
 
 class GroupWriter {
@@ -106,13 +117,22 @@ class GroupWriter {
         file_(file),
         group_(H5Gcreate2(parent, path.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
                file, "create group " + path) {}
-  void column(const std::string& name, const std::vector<double>& values) {
+  void column(const std::string& name, const std::vector<double>& values,
+              const char* units = nullptr, const char* description = nullptr) {
     write_column(group_.get(), path_, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values.data(),
-                 values.size(), file_);
+                 values.size(), file_, units, description);
   }
-  void column(const std::string& name, const std::vector<int>& values) {
+  void column(const std::string& name, const std::vector<int>& values, const char* units = nullptr,
+              const char* description = nullptr) {
     write_column(group_.get(), path_, name, H5T_STD_I32LE, H5T_NATIVE_INT, values.data(),
-                 values.size(), file_);
+                 values.size(), file_, units, description);
+  }
+  // Every column of a table, with its units and description.
+  template <class Table, class Columns>
+  void table(const Table& t, Columns columns) {
+    columns(t, [&](const char* name, const auto& values, const char* units, const char* what) {
+      column(name, values, units, what);
+    });
   }
   hid_t get() const { return group_.get(); }
 
@@ -141,42 +161,26 @@ void write_file(const std::string& file, const Results& r, bool complete) {
   Handle h5file(H5Fcreate(file.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose, file,
                 "create the file");
   write_meta(h5file.get(), r, complete, file);
-  if (!r.timeseries.time.empty()) {
-    GroupWriter g(h5file.get(), "/timeseries", file);
-    g.column("time", r.timeseries.time);
-    g.column("displacement", r.timeseries.displacement);
-    g.column("velocity", r.timeseries.velocity);
-    g.column("damper_force", r.timeseries.damper_force);
-  }
-  if (!r.frf.frequency.empty()) {
-    GroupWriter g(h5file.get(), "/frf", file);
-    g.column("frequency", r.frf.frequency);
-    g.column("amplitude", r.frf.amplitude);
-    g.column("phase", r.frf.phase);
-    g.column("rms", r.frf.rms);
-    g.column("peak", r.frf.peak);
-    g.column("periods", r.frf.periods);
-    g.column("converged", r.frf.converged);
-    g.column("dissipated_energy", r.frf.dissipated_energy);
-    g.column("dissipated_normal", r.frf.dissipated_normal);
-    g.column("dissipated_tangential", r.frf.dissipated_tangential);
-  }
-  if (!r.prescribed.frequency.empty()) {
-    GroupWriter g(h5file.get(), "/prescribed", file);
-    g.column("frequency", r.prescribed.frequency);
-    g.column("dissipated_power", r.prescribed.dissipated_power);
-    g.column("force_amplitude", r.prescribed.force_amplitude);
-    g.column("force_phase", r.prescribed.force_phase);
-  }
-  if (r.energy) {
-    GroupWriter g(h5file.get(), "/energy", file);
-    g.column("time", r.energy->time);
-    g.column("kinetic", r.energy->kinetic);
-    g.column("elastic", r.energy->elastic);
-    g.column("dissipated_normal", r.energy->dissipated_normal);
-    g.column("dissipated_tangential", r.energy->dissipated_tangential);
-    g.column("work_in", r.energy->work_in);
-  }
+  if (!r.timeseries.time.empty())
+    GroupWriter(h5file.get(), "/timeseries", file).table(r.timeseries, [](auto& t, auto&& f) {
+      timeseries_columns(t, f);
+    });
+  if (!r.frf.frequency.empty())
+    GroupWriter(h5file.get(), "/frf", file).table(r.frf, [](auto& t, auto&& f) {
+      frf_columns(t, f);
+    });
+  if (!r.prescribed.frequency.empty())
+    GroupWriter(h5file.get(), "/prescribed", file).table(r.prescribed, [](auto& t, auto&& f) {
+      prescribed_columns(t, f);
+    });
+  if (!r.periods.frequency.empty())
+    GroupWriter(h5file.get(), "/periods", file).table(r.periods, [](auto& t, auto&& f) {
+      period_columns(t, f);
+    });
+  if (r.energy)
+    GroupWriter(h5file.get(), "/energy", file).table(*r.energy, [](auto& t, auto&& f) {
+      energy_columns(t, f);
+    });
   if (!r.checkpoint.empty()) {
     GroupWriter g(h5file.get(), "/checkpoint", file);
     for (const auto& [name, values] : r.checkpoint) g.column(name, values);
@@ -295,39 +299,20 @@ Results read_file(const std::string& file) {
                 "open the file");
   const hid_t f = h5file.get();
   read_group(f, "/meta", file, [&](hid_t meta, const GroupReader&) { read_meta(meta, r, file); });
-  read_group(f, "/timeseries", file, [&](hid_t, const GroupReader& g) {
-    g.column("time", r.timeseries.time);
-    g.column("displacement", r.timeseries.displacement);
-    g.column("velocity", r.timeseries.velocity);
-    g.column("damper_force", r.timeseries.damper_force);
-  });
-  read_group(f, "/frf", file, [&](hid_t, const GroupReader& g) {
-    g.column("frequency", r.frf.frequency);
-    g.column("amplitude", r.frf.amplitude);
-    g.column("phase", r.frf.phase);
-    g.column("rms", r.frf.rms);
-    g.column("peak", r.frf.peak);
-    g.column("periods", r.frf.periods);
-    g.column("converged", r.frf.converged);
-    g.column("dissipated_energy", r.frf.dissipated_energy);
-    g.column("dissipated_normal", r.frf.dissipated_normal);
-    g.column("dissipated_tangential", r.frf.dissipated_tangential);
-  });
-  read_group(f, "/prescribed", file, [&](hid_t, const GroupReader& g) {
-    g.column("frequency", r.prescribed.frequency);
-    g.column("dissipated_power", r.prescribed.dissipated_power);
-    g.column("force_amplitude", r.prescribed.force_amplitude);
-    g.column("force_phase", r.prescribed.force_phase);
-  });
-  read_group(f, "/energy", file, [&](hid_t, const GroupReader& g) {
-    EnergySeries& e = r.energy.emplace();
-    g.column("time", e.time);
-    g.column("kinetic", e.kinetic);
-    g.column("elastic", e.elastic);
-    g.column("dissipated_normal", e.dissipated_normal);
-    g.column("dissipated_tangential", e.dissipated_tangential);
-    g.column("work_in", e.work_in);
-  });
+  auto read_all = [](const GroupReader& g) {
+    return
+        [&g](const char* name, auto& values, const char*, const char*) { g.column(name, values); };
+  };
+  read_group(f, "/timeseries", file,
+             [&](hid_t, const GroupReader& g) { timeseries_columns(r.timeseries, read_all(g)); });
+  read_group(f, "/frf", file,
+             [&](hid_t, const GroupReader& g) { frf_columns(r.frf, read_all(g)); });
+  read_group(f, "/prescribed", file,
+             [&](hid_t, const GroupReader& g) { prescribed_columns(r.prescribed, read_all(g)); });
+  read_group(f, "/periods", file,
+             [&](hid_t, const GroupReader& g) { period_columns(r.periods, read_all(g)); });
+  read_group(f, "/energy", file,
+             [&](hid_t, const GroupReader& g) { energy_columns(r.energy.emplace(), read_all(g)); });
   read_group(f, "/checkpoint", file, [&](hid_t group, const GroupReader& g) {
     for (const std::string& name : member_names(group, false, file, "list /checkpoint")) {
       g.column(name, r.checkpoint[name]);

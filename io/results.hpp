@@ -8,34 +8,116 @@
 
 namespace pdsim {
 
+// Each table lists its columns once, with units and meaning, in a *_columns(table, f) function
+// that calls f(name, column, units, description) for each: the writer and the reader of
+// io/results.cpp both walk that list (T is the table or a const table).
+
 struct TimeSeries {  // structure DOF along the excitation direction, total force on the
                      // container(s)
-  std::vector<double> time, displacement, velocity, damper_force;  // s, m, m/s, N
+  std::vector<double> time, displacement, velocity, damper_force, frequency;
 };
+template <class T, class F>
+void timeseries_columns(T& t, F&& f) {
+  f("time", t.time, "s", "simulated time of the sample");
+  f("displacement", t.displacement, "m",
+    "structure displacement at the response DOF along the excitation direction (relative to "
+    "the base for base input)");
+  f("velocity", t.velocity, "m/s", "structure velocity at the response DOF");
+  f("damper_force", t.damper_force, "N",
+    "force of the particles on the container(s) along the direction, mean over the coupling "
+    "interval that starts at the sample");
+  f("frequency", t.frequency, "Hz", "excitation frequency being run when the sample was taken");
+}
 
-struct FrfTable {                             // one row per stepped-sine frequency
-  std::vector<double> frequency;              // Hz
-  std::vector<double> amplitude;              // m, first-harmonic displacement amplitude
-  std::vector<double> phase;                  // rad, of the displacement relative to the input
-  std::vector<double> rms;                    // m
-  std::vector<double> peak;                   // m
-  std::vector<int> periods;                   // periods run at this frequency
-  std::vector<int> converged;                 // 0/1
-  std::vector<double> dissipated_energy;      // J per cycle in the particles
-  std::vector<double> dissipated_normal;      // J per cycle, normal damping
-  std::vector<double> dissipated_tangential;  // J per cycle, friction / tangential damping
+struct FrfTable {  // one row per stepped-sine frequency
+  std::vector<double> frequency, amplitude, amplitude_ci, phase, phase_ci, rms, peak;
+  std::vector<int> periods, periods_discarded, converged, realisations;
+  std::vector<double> dissipated_energy, dissipated_energy_ci, dissipated_normal,
+      dissipated_tangential;
 };
+template <class T, class F>
+void frf_columns(T& t, F&& f) {
+  f("frequency", t.frequency, "Hz", "excitation frequency");
+  f("amplitude", t.amplitude, "m",
+    "first-harmonic displacement amplitude, mean over the stationary periods (over the "
+    "realisations' means when realisations > 1)");
+  f("amplitude_ci", t.amplitude_ci, "m",
+    "95 % half-width of amplitude: batch means over the stationary periods when realisations = "
+    "1, Student t over the realisations' means otherwise");
+  f("phase", t.phase, "rad",
+    "phase of the first harmonic against the input sin(angle): x = amplitude sin(angle + phase)");
+  f("phase_ci", t.phase_ci, "rad", "95 % half-width of phase (as amplitude_ci)");
+  f("rms", t.rms, "m", "RMS displacement over the stationary periods");
+  f("peak", t.peak, "m", "largest |displacement| over the stationary periods");
+  f("periods", t.periods, "1", "periods run at this frequency (per realisation, the largest)");
+  f("periods_discarded", t.periods_discarded, "1",
+    "warm-up periods left out of the means (MSER truncation; largest over the realisations)");
+  f("converged", t.converged, "1",
+    "1 when the means are stationary and known to settle.tolerance, else 0 (not a result)");
+  f("realisations", t.realisations, "1", "independent runs (fill seeds) behind the point");
+  f("dissipated_energy", t.dissipated_energy, "J",
+    "energy the containers put into the particles per period (= dissipated in them when "
+    "stationary)");
+  f("dissipated_energy_ci", t.dissipated_energy_ci, "J", "95 % half-width of dissipated_energy");
+  f("dissipated_normal", t.dissipated_normal, "J", "per period, normal contact damping");
+  f("dissipated_tangential", t.dissipated_tangential, "J",
+    "per period, friction and tangential damping");
+}
 
-struct PrescribedTable {                 // one row per prescribed-motion frequency
-  std::vector<double> frequency;         // Hz
-  std::vector<double> dissipated_power;  // W, mean over the averaged cycles
-  std::vector<double> force_amplitude;   // N, first harmonic of the container force along the axis
-  std::vector<double> force_phase;       // rad, relative to the displacement
+struct PrescribedTable {  // one row per prescribed-motion frequency
+  std::vector<double> frequency, dissipated_power, dissipated_power_ci, force_amplitude,
+      force_amplitude_ci, force_phase, force_phase_ci;
+  std::vector<int> periods, periods_discarded, converged, realisations;
 };
+template <class T, class F>
+void prescribed_columns(T& t, F&& f) {
+  f("frequency", t.frequency, "Hz", "frequency of the container motion");
+  f("dissipated_power", t.dissipated_power, "W",
+    "mean power the container puts into the particles over the stationary periods");
+  f("dissipated_power_ci", t.dissipated_power_ci, "W", "95 % half-width of dissipated_power");
+  f("force_amplitude", t.force_amplitude, "N",
+    "first harmonic of the particles' force on the container along the motion axis");
+  f("force_amplitude_ci", t.force_amplitude_ci, "N", "95 % half-width of force_amplitude");
+  f("force_phase", t.force_phase, "rad", "phase of that force against the displacement");
+  f("force_phase_ci", t.force_phase_ci, "rad", "95 % half-width of force_phase");
+  f("periods", t.periods, "1", "periods run at this frequency");
+  f("periods_discarded", t.periods_discarded, "1", "warm-up periods left out of the means");
+  f("converged", t.converged, "1",
+    "1 when the force harmonic is stationary and known to "
+    "settle.tolerance (fixed durations: 1 when stationary)");
+  f("realisations", t.realisations, "1", "independent runs (fill seeds) behind the point");
+}
+
+struct PeriodTable {  // one row per period run, per frequency and realisation
+  std::vector<double> frequency, amplitude, phase, force_amplitude, force_phase, energy_in;
+  std::vector<int> realisation, period, stationary;
+};
+template <class T, class F>
+void period_columns(T& t, F&& f) {
+  f("frequency", t.frequency, "Hz", "excitation frequency");
+  f("realisation", t.realisation, "1", "realisation (fill seed offset), from 0");
+  f("period", t.period, "1", "period at this frequency, from 0");
+  f("stationary", t.stationary, "1", "1 for the periods the means use, 0 for the warm-up");
+  f("amplitude", t.amplitude, "m", "this period's first-harmonic displacement amplitude");
+  f("phase", t.phase, "rad", "its phase against the input sin(angle)");
+  f("force_amplitude", t.force_amplitude, "N",
+    "this period's first harmonic of the particles' force on the container(s)");
+  f("force_phase", t.force_phase, "rad", "its phase against the input (prescribed: the motion)");
+  f("energy_in", t.energy_in, "J", "energy the containers put into the particles this period");
+}
 
 struct EnergySeries {
   std::vector<double> time, kinetic, elastic, dissipated_normal, dissipated_tangential, work_in;
 };
+template <class T, class F>
+void energy_columns(T& t, F&& f) {
+  f("time", t.time, "s", "simulated time");
+  f("kinetic", t.kinetic, "J", "kinetic energy of the structure and the particles");
+  f("elastic", t.elastic, "J", "elastic energy of the structure");
+  f("dissipated_normal", t.dissipated_normal, "J", "cumulative, normal contact damping");
+  f("dissipated_tangential", t.dissipated_tangential, "J", "cumulative, friction");
+  f("work_in", t.work_in, "J", "cumulative work of the excitation");
+}
 
 struct Results {
   // /meta attributes: deck, version, backend, threads, dt, wall_time_s, particle_steps, ...
@@ -44,6 +126,7 @@ struct Results {
   TimeSeries timeseries;
   FrfTable frf;
   PrescribedTable prescribed;
+  PeriodTable periods;  // the per-period harmonics behind /frf or /prescribed
   std::optional<EnergySeries> energy;
   // Restart state (named flat arrays), written while a run is in progress so that --resume
   // continues after the last finished frequency. Empty in a finished file.

@@ -7,30 +7,66 @@
 namespace pdsim {
 
 double Drive::force(double t) const {
-  return input == ExcitationInput::force ? amplitude * std::sin(omega * t) : 0.0;
+  return input == ExcitationInput::force ? amplitude * std::sin(angle(t)) : 0.0;
 }
 
 // Base motion is the periodic solution of y'' = a: for a displacement amplitude Y,
 // y = Y sin wt; for an acceleration amplitude A, y = -(A / w^2) sin wt.
 double Drive::base_displacement(double t) const {
-  if (input == ExcitationInput::base_displacement) return amplitude * std::sin(omega * t);
+  if (input == ExcitationInput::base_displacement) return amplitude * std::sin(angle(t));
   if (input == ExcitationInput::base_acceleration)
-    return -amplitude / (omega * omega) * std::sin(omega * t);
+    return -amplitude / (omega * omega) * std::sin(angle(t));
   return 0.0;
 }
 
 double Drive::base_velocity(double t) const {
-  if (input == ExcitationInput::base_displacement) return amplitude * omega * std::cos(omega * t);
-  if (input == ExcitationInput::base_acceleration) return -amplitude / omega * std::cos(omega * t);
+  if (input == ExcitationInput::base_displacement) return amplitude * omega * std::cos(angle(t));
+  if (input == ExcitationInput::base_acceleration) return -amplitude / omega * std::cos(angle(t));
   return 0.0;
 }
 
 double Drive::base_acceleration(double t) const {
   if (input == ExcitationInput::base_displacement)
-    return -amplitude * omega * omega * std::sin(omega * t);
-  if (input == ExcitationInput::base_acceleration) return amplitude * std::sin(omega * t);
+    return -amplitude * omega * omega * std::sin(angle(t));
+  if (input == ExcitationInput::base_acceleration) return amplitude * std::sin(angle(t));
   return 0.0;
 }
+
+namespace {
+
+// Moves the particles of `engine` rigidly with their container from `from` to `to` (position,
+// velocity and spin relative to the container kept), contact histories kept. Through the
+// engine's checkpoint, which both backends write with the same state arrays.
+void carry_with_container(DemEngine& engine, const ContainerKinematics& from,
+                          const ContainerKinematics& to) {
+  StateArrays state = engine.save();
+  std::vector<double>*x = &state.at("x"), *y = &state.at("y"), *z = &state.at("z");
+  std::vector<double>*vx = &state.at("vx"), *vy = &state.at("vy"), *vz = &state.at("vz");
+  std::vector<double>*wx = &state.at("wx"), *wy = &state.at("wy"), *wz = &state.at("wz");
+  // Local frame components of a world vector, and back.
+  auto local = [&](Vec3 e) {
+    return Vec3{dot(e, from.axis_x), dot(e, from.axis_y), dot(e, from.axis_z)};
+  };
+  auto world = [&](Vec3 l) { return l.x * to.axis_x + l.y * to.axis_y + l.z * to.axis_z; };
+  for (std::size_t i = 0; i < x->size(); ++i) {
+    const Vec3 r{(*x)[i] - from.position.x, (*y)[i] - from.position.y, (*z)[i] - from.position.z};
+    const Vec3 v{(*vx)[i], (*vy)[i], (*vz)[i]}, w{(*wx)[i], (*wy)[i], (*wz)[i]};
+    const Vec3 r_local = local(r);
+    const Vec3 v_local = local(v - from.velocity - cross(from.angular_velocity, r));
+    const Vec3 w_local = local(w - from.angular_velocity);
+    const Vec3 r_to = world(r_local);
+    const Vec3 p = to.position + r_to;
+    const Vec3 v_to = to.velocity + cross(to.angular_velocity, r_to) + world(v_local);
+    const Vec3 w_to = to.angular_velocity + world(w_local);
+    (*x)[i] = p.x, (*y)[i] = p.y, (*z)[i] = p.z;
+    (*vx)[i] = v_to.x, (*vy)[i] = v_to.y, (*vz)[i] = v_to.z;
+    (*wx)[i] = w_to.x, (*wy)[i] = w_to.y, (*wz)[i] = w_to.z;
+  }
+  state.at("grid").at(7) = 1.0;  // moved: the neighbour lists are rebuilt
+  engine.restore(state);
+}
+
+}  // namespace
 
 CoupledSystem::CoupledSystem(const Deck& deck, const Scene& scene)
     : scene_(scene),
@@ -50,6 +86,7 @@ CoupledSystem::CoupledSystem(const Deck& deck, const Scene& scene)
   for (const DamperScene& d : scene.dampers) engines_.push_back(make_engine(d.engine));
   pending_force_.assign(engines_.size(), 0.0);
   force_ = force_sum_ = guess_ = torque_ = torque_sum_ = pending_torque_ = pending_force_;
+  displacement_ = force_mean_ = pending_force_;
   if (deck.structure.kind == StructureKind::beam) {
     const Vec3 axis = cross(deck.structure.beam.axis, direction_);
     rotation_axis_ = (1.0 / norm(axis)) * axis;
@@ -79,15 +116,12 @@ void CoupledSystem::configure(double dt, const Drive& drive) {
 void CoupledSystem::set_initial_displacement(double x0) {
   // Static deflection shape under the excitation force pattern, scaled to x0 at the response.
   const Eigen::VectorXd shape = structure_.stiffness.ldlt().solve(structure_.force_shape);
+  std::vector<ContainerKinematics> before;
+  for (std::size_t k = 0; k < engines_.size(); ++k) before.push_back(container_now(k));
   integrator_->q = x0 / response(shape) * shape;
   integrator_->v.setZero();
-  // The particles were placed in containers at rest at the origin: carry them along.
-  for (std::size_t k = 0; k < engines_.size(); ++k) {
-    const double u = structure_.attachment_translation.row(static_cast<int>(k)) * integrator_->q;
-    std::vector<ParticleState> particles = engines_[k]->particles();
-    for (ParticleState& p : particles) p.position += u * direction_;
-    engines_[k]->set_particles(particles);
-  }
+  for (std::size_t k = 0; k < engines_.size(); ++k)
+    carry_with_container(*engines_[k], before[k], container_now(k));
 }
 
 double CoupledSystem::response(const Eigen::VectorXd& q) const {
@@ -167,8 +201,8 @@ void CoupledSystem::advance() {
 
 void CoupledSystem::step_prescribed() {
   const MotionSpec& m = *prescribed_;
-  const double u = m.amplitude * std::sin(drive_.omega * time_);
-  const double u_dot = m.amplitude * drive_.omega * std::cos(drive_.omega * time_);
+  const double u = m.amplitude * std::sin(drive_.angle(time_));
+  const double u_dot = m.amplitude * drive_.omega * std::cos(drive_.angle(time_));
   last_ = StepRecord{};
   last_.time = time_;
   last_.displacement = u;
@@ -179,6 +213,9 @@ void CoupledSystem::step_prescribed() {
     if (totals.flags)
       check(totals, static_cast<std::size_t>(&e - engines_.data()), time_, kin.position);
     e->accept();
+    const std::size_t k = static_cast<std::size_t>(&e - engines_.data());
+    displacement_[k] = u;
+    force_mean_[k] = dot(totals.wall_force, m.axis);
     last_.damper_force += dot(totals.wall_force, m.axis);
     last_.power_in -= dot(totals.wall_force, kin.velocity);
     last_.dissipated_normal += totals.dissipated_normal;
@@ -189,11 +226,18 @@ void CoupledSystem::step_prescribed() {
   time_ += dt_;
 }
 
+// Container k's absolute displacement along `direction` now, m.
+double CoupledSystem::container_displacement(std::size_t k) const {
+  return drive_.base_displacement(time_) +
+         structure_.attachment_translation.row(static_cast<int>(k)).dot(integrator_->q);
+}
+
 void CoupledSystem::step_explicit(bool impulse) {
   const double t0 = time_;
   last_.time = t0;
   last_.displacement = response(integrator_->q);
   last_.velocity = response(integrator_->v);
+  for (std::size_t k = 0; k < engines_.size(); ++k) displacement_[k] = container_displacement(k);
   // The DEM sub-steps see the container extrapolated linearly over the coupling interval.
   std::fill(force_sum_.begin(), force_sum_.end(), 0.0);
   std::fill(torque_sum_.begin(), torque_sum_.end(), 0.0);
@@ -213,6 +257,7 @@ void CoupledSystem::step_explicit(bool impulse) {
   double total_force = 0;
   for (std::size_t k = 0; k < force_sum_.size(); ++k) {
     const double mean = force_sum_[k] / every_;
+    force_mean_[k] = mean;
     damper_load_ += mean * structure_.attachment_translation.row(static_cast<int>(k)).transpose();
     damper_load_ += (torque_sum_[k] / every_) *
                     structure_.attachment_rotation.row(static_cast<int>(k)).transpose();
@@ -255,6 +300,8 @@ void CoupledSystem::step_tight() {
   record.velocity = response(integrator_->v);
   record.damper_force = 0;
   for (double f : pending_force_) record.damper_force += f;
+  force_mean_ = pending_force_;
+  for (std::size_t k = 0; k < engines_.size(); ++k) displacement_[k] = container_displacement(k);
   for (auto& e : engines_) e->accept();  // particles t_n -> t_{n+1}
 
   q_start_ = integrator_->q;
@@ -292,6 +339,72 @@ void CoupledSystem::step_tight() {
   pending_torque_ = torque_;
   pending_record_ = computed;
   time_ = t0 + dt_;
+}
+
+double CoupledSystem::settle_step(double dt) {
+  double speed_sq = 0;
+  for (std::size_t k = 0; k < engines_.size(); ++k) {
+    ContainerKinematics kin = container_now(k);
+    kin.velocity = {};
+    kin.angular_velocity = {};
+    const StepTotals& totals = engines_[k]->compute(kin, dt);
+    if (totals.flags) check(totals, k, time_, kin.position);
+    engines_[k]->accept();
+    speed_sq = std::max(speed_sq, totals.speed_sq);
+    particle_steps_ += engines_[k]->count();
+  }
+  pending_ = false;
+  return std::sqrt(speed_sq);
+}
+
+ContainerKinematics CoupledSystem::container_now(std::size_t k) const {
+  if (prescribed_) {
+    const MotionSpec& m = *prescribed_;
+    return translating(m.amplitude * std::sin(drive_.angle(time_)) * m.axis,
+                       m.amplitude * drive_.omega * std::cos(drive_.angle(time_)) * m.axis);
+  }
+  const int row = static_cast<int>(k);
+  const auto rotation = structure_.attachment_rotation.row(row);
+  const double u_dot =
+      drive_.base_velocity(time_) + structure_.attachment_translation.row(row).dot(integrator_->v);
+  return container(container_displacement(k), u_dot, rotation.dot(integrator_->q),
+                   rotation.dot(integrator_->v));
+}
+
+Eigen::VectorXcd CoupledSystem::predicted_harmonic(
+    const std::vector<std::complex<double>>& impedance) const {
+  const double w = drive_.omega;
+  // Phasors relative to e^{i angle}: force input P = A f; base input y = Im(Y e^{i angle}) loads
+  // the relative coordinates with -M r y'' = w^2 M r y.
+  std::complex<double> base = 0;
+  Eigen::VectorXcd load;
+  if (drive_.input == ExcitationInput::force) {
+    load = drive_.amplitude * structure_.force_shape.cast<std::complex<double>>();
+  } else {
+    base = drive_.input == ExcitationInput::base_displacement ? drive_.amplitude
+                                                              : -drive_.amplitude / (w * w);
+    load =
+        (w * w * base) * (structure_.mass * structure_.base_influence).cast<std::complex<double>>();
+  }
+  return harmonic_response(structure_, w, load, impedance, base);
+}
+
+void CoupledSystem::start_on(const Eigen::VectorXcd& harmonic,
+                             const std::vector<double>& mean_force) {
+  if (!integrator_) return;
+  const std::complex<double> i(0, 1);
+  Eigen::VectorXd constant = Eigen::VectorXd::Zero(structure_.size());
+  for (std::size_t k = 0; k < mean_force.size(); ++k)
+    constant +=
+        mean_force[k] * structure_.attachment_translation.row(static_cast<int>(k)).transpose();
+  const std::complex<double> turn = std::exp(i * drive_.angle(time_));
+  std::vector<ContainerKinematics> before;
+  for (std::size_t k = 0; k < engines_.size(); ++k) before.push_back(container_now(k));
+  integrator_->q = static_response(structure_, constant) + (harmonic * turn).imag();
+  integrator_->v = (i * drive_.omega * harmonic * turn).imag();
+  for (std::size_t k = 0; k < engines_.size(); ++k)
+    carry_with_container(*engines_[k], before[k], container_now(k));
+  pending_ = false;
 }
 
 // Blow-up guard: a non-finite value or a particle outside its container stops the run with

@@ -17,10 +17,13 @@
 namespace pdsim {
 
 // Harmonic input at angular frequency omega (rad/s); amplitude in N, m or m/s^2 by `input`.
+// Its phase is omega (t - t0) + phase0, so that a new frequency can continue the old phase.
 struct Drive {
   ExcitationInput input = ExcitationInput::force;
   double amplitude = 0;
   double omega = 0;
+  double t0 = 0, phase0 = 0;  // s, rad
+  double angle(double t) const { return omega * (t - t0) + phase0; }
   double force(double t) const;  // N, on the structure (force input only)
   double base_acceleration(double t) const;
   double base_displacement(double t) const;
@@ -59,6 +62,27 @@ class CoupledSystem {
   int particle_count() const;
   const std::vector<std::unique_ptr<DemEngine>>& engines() const { return engines_; }
   void set_initial_displacement(double x0);  // free decay: displace the response DOF statically
+  const Drive& drive() const { return drive_; }
+
+  // One DEM step of every damper with its container held at rest where it is (the bed settling
+  // before the excitation); time stands still. Returns the largest particle speed, m/s.
+  double settle_step(double dt);
+  // Per damper, over the last advance(): the container's absolute displacement along
+  // `direction` at its start (m) and the mean force of the particles on it (N).
+  const std::vector<double>& damper_displacements() const { return displacement_; }
+  const std::vector<double>& damper_forces() const { return force_mean_; }
+  // The structure's steady harmonic state predicted for the drive (q = Im(Q e^{i angle})), each
+  // damper acting as the impedance Z_k (N/m, complex: its first-harmonic force on the container
+  // is -Z_k times the container's displacement).
+  Eigen::VectorXcd predicted_harmonic(const std::vector<std::complex<double>>& impedance) const;
+  // Puts the structure on that state, displaced statically by the dampers' constant forces
+  // mean_force_k (N, e.g. a weight along `direction`), and carries the particles along with
+  // their containers.
+  void start_on(const Eigen::VectorXcd& harmonic, const std::vector<double>& mean_force);
+  // The response DOF's part of a harmonic state, m.
+  std::complex<double> response_of(const Eigen::VectorXcd& harmonic) const {
+    return structure_.response.cast<std::complex<double>>() * harmonic;
+  }
 
   // Particle states of every damper as CSV (damper, id, x, y, z, vx, vy, vz, wx, wy, wz).
   void dump(const std::string& path) const;
@@ -72,6 +96,8 @@ class CoupledSystem {
   // Generalised external load at t, written into `load` (no allocation in the step loop).
   void external_load(double t, Eigen::VectorXd& load) const;
   double response(const Eigen::VectorXd& q) const;
+  double container_displacement(std::size_t k) const;  // absolute, along direction_, m
+  ContainerKinematics container_now(std::size_t k) const;
   void step_prescribed();
   void step_explicit(bool impulse);
   void step_tight();
@@ -96,6 +122,7 @@ class CoupledSystem {
   long long particle_steps_ = 0;
   // Work buffers of the step loop, sized once.
   std::vector<double> force_, force_sum_, guess_, torque_, torque_sum_, pending_torque_;
+  std::vector<double> displacement_, force_mean_;  // per damper, see damper_displacements()
   Eigen::VectorXd load_, damper_load_, q_start_, v_start_;
 };
 

@@ -34,6 +34,10 @@ int main(int argc, char** argv) {
   run->add_option("-o,--output", output, "output file (default: output.file of the deck)");
   run->add_option("--threads", options.threads, "CPU threads (default: all)")
       ->check(CLI::PositiveNumber);
+  run->add_option("--jobs", options.jobs,
+                  "runs side by side: independent frequencies, realisations (default: one per "
+                  "core, the threads shared out)")
+      ->check(CLI::PositiveNumber);
   run->add_option("--backend", backend, "cpu, cuda or auto (default: the deck's solver.backend)");
   run->add_flag("--resume", options.resume, "continue an interrupted run from its checkpoint");
   run->add_flag("--force", options.force, "overwrite an existing output file");

@@ -5,12 +5,18 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <sstream>
 
+#include <atomic>
+#include <map>
+#include <mutex>
+#include <thread>
+
 #include "pdsim_version.hpp"
-#include "src/harmonics.hpp"
+#include "src/frequency_run.hpp"
 #include "src/sweep.hpp"
 
 namespace pdsim {
@@ -27,24 +33,38 @@ namespace {
 volatile std::sig_atomic_t g_interrupted = 0;
 extern "C" void on_interrupt(int) {
   g_interrupted = 1;
+  g_stop_runs = true;
 }
 
 using Clock = std::chrono::steady_clock;
 
-// Progress on stderr: a rewritten line on a terminal, a line every few seconds otherwise.
+// Progress on stderr: a rewritten line on a terminal, a line every few seconds otherwise. Each
+// task reports how many of its frequencies it has done (with the fraction of the current one).
 class Progress {
  public:
-  explicit Progress(bool quiet) : quiet_(quiet), tty_(isatty(fileno(stderr)) != 0) {}
-  void update(double sim_time, double frequency, double fraction_done) {
+  Progress(bool quiet, std::size_t tasks, double total)
+      : quiet_(quiet), tty_(isatty(fileno(stderr)) != 0), done_(tasks, 0.0), total_(total) {}
+  void update(std::size_t task, double done, double frequency) {
     if (quiet_) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    done_[task] = done;
     const auto now = Clock::now();
     if (now - last_ < (tty_ ? std::chrono::milliseconds(250) : std::chrono::seconds(5))) return;
     last_ = now;
+    double sum = 0;
+    for (double d : done_) sum += d;
+    const double fraction = std::min(1.0, sum / total_);
     const double elapsed = std::chrono::duration<double>(now - start_).count();
-    const double eta = fraction_done > 1e-3 ? elapsed * (1 - fraction_done) / fraction_done : 0;
-    std::fprintf(stderr, "%st = %.4f s  f = %.3f Hz  %5.1f%%  elapsed %.0f s  ETA %.0f s%s",
-                 tty_ ? "\r" : "", sim_time, frequency, 100 * fraction_done, elapsed, eta,
-                 tty_ ? "   " : "\n");
+    const double eta = fraction > 1e-3 ? elapsed * (1 - fraction) / fraction : 0;
+    std::fprintf(stderr, "%sf = %.3f Hz  %5.1f%%  elapsed %.0f s  ETA %.0f s%s", tty_ ? "\r" : "",
+                 frequency, 100 * fraction, elapsed, eta, tty_ ? "   " : "\n");
+    std::fflush(stderr);
+  }
+  // A line of its own (a finished frequency), not overwritten by the progress line.
+  void say(const std::string& line) {
+    if (quiet_) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::fprintf(stderr, "%s%s\n", tty_ ? "\r\033[K" : "", line.c_str());
     std::fflush(stderr);
   }
   void finish() {
@@ -53,224 +73,659 @@ class Progress {
 
  private:
   bool quiet_, tty_;
+  std::mutex mutex_;
+  std::vector<double> done_;
+  double total_;
   Clock::time_point start_ = Clock::now(), last_{};
 };
 
-class Runner {
+const char* start_name(FrequencyStart s) {
+  constexpr const char* names[] = {"predicted", "carried", "independent"};
+  return names[static_cast<int>(s)];
+}
+
+// A measured point as checkpoint numbers, so that a resumed run combines it as if just measured.
+std::vector<double> pack(const FrequencyPoint& p) {
+  const Stationary& j = p.judged;
+  return {p.frequency,
+          j.mean.real(),
+          j.mean.imag(),
+          j.amplitude_ci,
+          j.phase_ci,
+          double(j.discarded),
+          double(j.batch_length),
+          double(j.batches),
+          double(j.periods),
+          j.lag1,
+          0.0,  // (a flag no longer written)
+          double(j.trend),
+          double(j.converged),
+          p.mean.mean_square,
+          p.mean.peak,
+          p.energy_in.mean,
+          p.energy_in.half_width,
+          p.mean.dissipated_normal,
+          p.mean.dissipated_tangential};
+}
+
+// The per-period harmonics of a point, five numbers a period.
+std::vector<double> pack_periods(const FrequencyPoint& p) {
+  std::vector<double> out;
+  for (const PeriodSummary& s : p.periods)
+    out.insert(out.end(), {s.displacement.real(), s.displacement.imag(), s.force.real(),
+                           s.force.imag(), s.energy_in});
+  return out;
+}
+void unpack_periods(const std::vector<double>& v, FrequencyPoint& p) {
+  for (std::size_t k = 0; k + 5 <= v.size(); k += 5) {
+    PeriodSummary s;
+    s.displacement = {v[k], v[k + 1]};
+    s.force = {v[k + 2], v[k + 3]};
+    s.energy_in = v[k + 4];
+    p.periods.push_back(s);
+  }
+}
+
+FrequencyPoint unpack(const std::vector<double>& v) {
+  if (v.size() != 19) throw SimulationError("checkpoint point of an unknown layout");
+  FrequencyPoint p;
+  Stationary& j = p.judged;
+  p.frequency = v[0];
+  j.mean = {v[1], v[2]};
+  j.amplitude_ci = v[3];
+  j.phase_ci = v[4];
+  j.discarded = static_cast<int>(v[5]);
+  j.batch_length = static_cast<int>(v[6]);
+  j.batches = static_cast<int>(v[7]);
+  j.periods = static_cast<int>(v[8]);
+  j.lag1 = v[9];
+  j.trend = v[11] != 0;
+  j.converged = v[12] != 0;
+  j.reason = j.converged ? "" : "not converged";
+  p.mean.mean_square = v[13];
+  p.mean.peak = v[14];
+  p.energy_in = {v[15], v[16]};
+  p.mean.dissipated_normal = v[17];
+  p.mean.dissipated_tangential = v[18];
+  return p;
+}
+
+// One row of /frf or /prescribed from the runs (realisations) of one frequency. With one run the
+// intervals are its batch-means intervals; with several, Student t over the runs' means, and the
+// point is converged when every run is stationary and the combined interval meets the tolerance.
+void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& deck) {
+  const SettleSpec& settle = deck.excitation.settle;
+  const bool prescribed = deck.excitation.kind == ExcitationKind::prescribed;
+  std::complex<double> mean = 0;
+  int periods = 0, discarded = 0;
+  bool stationary = true;
+  std::vector<double> energies, rms, dn, dt;
+  double peak = 0;
+  for (const FrequencyPoint& p : runs) {
+    mean += p.judged.mean / double(runs.size());
+    periods = std::max(periods, p.judged.periods);
+    discarded = std::max(discarded, p.judged.discarded);
+    stationary = stationary && !p.judged.trend && p.judged.periods >= settle.min_periods;
+    energies.push_back(p.energy_in.mean);
+    rms.push_back(std::sqrt(p.mean.mean_square));
+    peak = std::max(peak, p.mean.peak);
+    dn.push_back(p.mean.dissipated_normal);
+    dt.push_back(p.mean.dissipated_tangential);
+  }
+  const double size = std::abs(mean);
+  double amplitude_ci = runs[0].judged.amplitude_ci, phase_ci = runs[0].judged.phase_ci;
+  MeanInterval energy = runs[0].energy_in;
+  bool converged = runs[0].judged.converged;
+  if (runs.size() > 1) {
+    const std::complex<double> along = size > 0 ? mean / size : 1.0;
+    std::vector<double> a, q;
+    for (const FrequencyPoint& p : runs) {
+      a.push_back((std::conj(along) * p.judged.mean).real());
+      q.push_back((std::conj(along) * p.judged.mean).imag());
+    }
+    amplitude_ci = independent_mean_interval(a).half_width;
+    phase_ci = size > 0 ? independent_mean_interval(q).half_width / size : kPi;
+    energy = independent_mean_interval(energies);
+    converged =
+        stationary && amplitude_ci <= settle.tolerance * size && phase_ci <= settle.tolerance;
+  }
+  auto average = [](const std::vector<double>& v) {
+    double s = 0;
+    for (double x : v) s += x;
+    return s / double(v.size());
+  };
+  const double frequency = runs[0].frequency;
+  const int realisations = static_cast<int>(runs.size());
+  for (std::size_t r = 0; r < runs.size(); ++r)
+    for (std::size_t k = 0; k < runs[r].periods.size(); ++k) {
+      const PeriodSummary& p = runs[r].periods[k];
+      PeriodTable& t = out.periods;
+      t.frequency.push_back(frequency);
+      t.realisation.push_back(static_cast<int>(r));
+      t.period.push_back(static_cast<int>(k));
+      t.stationary.push_back(static_cast<int>(k) >= runs[r].judged.discarded ? 1 : 0);
+      t.amplitude.push_back(std::abs(p.displacement));
+      t.phase.push_back(std::arg(p.displacement));
+      t.force_amplitude.push_back(std::abs(p.force));
+      t.force_phase.push_back(std::arg(p.force));
+      t.energy_in.push_back(p.energy_in);
+    }
+  if (prescribed) {
+    PrescribedTable& p = out.prescribed;
+    p.frequency.push_back(frequency);
+    p.dissipated_power.push_back(energy.mean * frequency);
+    p.dissipated_power_ci.push_back(energy.half_width * frequency);
+    p.force_amplitude.push_back(size);
+    p.force_amplitude_ci.push_back(amplitude_ci);
+    p.force_phase.push_back(std::arg(mean));
+    p.force_phase_ci.push_back(phase_ci);
+    p.periods.push_back(periods);
+    p.periods_discarded.push_back(discarded);
+    p.converged.push_back(converged ? 1 : 0);
+    p.realisations.push_back(realisations);
+    return;
+  }
+  FrfTable& f = out.frf;
+  f.frequency.push_back(frequency);
+  f.amplitude.push_back(size);
+  f.amplitude_ci.push_back(amplitude_ci);
+  f.phase.push_back(std::arg(mean));
+  f.phase_ci.push_back(phase_ci);
+  f.rms.push_back(average(rms));
+  f.peak.push_back(peak);
+  f.periods.push_back(periods);
+  f.periods_discarded.push_back(discarded);
+  f.converged.push_back(converged ? 1 : 0);
+  f.realisations.push_back(realisations);
+  f.dissipated_energy.push_back(energy.mean);
+  f.dissipated_energy_ci.push_back(energy.half_width);
+  f.dissipated_normal.push_back(average(dn));
+  f.dissipated_tangential.push_back(average(dt));
+}
+
+// The checkpoint arrays of one state under a prefix ("bed.r0.", "task.r1."), and back.
+void put_state(StateArrays& out, const std::string& prefix, const StateArrays& state) {
+  for (const auto& [name, values] : state) out[prefix + name] = values;
+}
+StateArrays get_state(const StateArrays& in, const std::string& prefix) {
+  StateArrays out;
+  for (auto it = in.lower_bound(prefix); it != in.end() && it->first.rfind(prefix, 0) == 0; ++it)
+    out[it->first.substr(prefix.size())] = it->second;
+  return out;
+}
+
+// Everything that decides a settled bed: a bed file made for other particles is refused.
+std::string bed_fingerprint(const Deck& deck, const Scene& scene) {
+  std::ostringstream s;
+  s.precision(17);
+  s << "dt " << scene.dt << " speed " << deck.bed.speed << " max_time " << deck.bed.max_time;
+  if (deck.gravity)
+    s << " g " << deck.gravity->x << " " << deck.gravity->y << " " << deck.gravity->z;
+  const ContactSpec& c = deck.contact;
+  s << " contact " << int(c.model) << " " << int(c.tangential) << " " << c.young << " " << c.poisson
+    << " " << c.restitution << " " << c.friction << " " << c.stiffness << " " << c.rolling_friction;
+  for (const DamperScene& d : scene.dampers) {
+    const EngineConfig& e = d.engine;
+    s << " | " << int(e.shape) << " " << e.geometry.half_size.x << " " << e.geometry.half_size.y
+      << " " << e.geometry.half_size.z << " " << e.density << " " << e.radius.size();
+    // The fill itself, as an FNV-1a hash of its radii and positions.
+    std::uint64_t hash = 1469598103934665603ull;
+    auto mix = [&](double v) {
+      unsigned char bytes[sizeof v];
+      std::memcpy(bytes, &v, sizeof v);
+      for (unsigned char b : bytes) hash = (hash ^ b) * 1099511628211ull;
+    };
+    for (double r : e.radius) mix(r);
+    for (const ParticleState& p : e.particles)
+      mix(p.position.x), mix(p.position.y), mix(p.position.z);
+    s << " " << hash;
+  }
+  return s.str();
+}
+
+// Runs a deck's excitation on one system, or on several side by side: the realisations (fill
+// seeds seed + r) and, with start = "independent", every frequency of each. One task is one run
+// of a FrequencyRun through its frequencies; tasks share the machine's cores (`jobs` at a time).
+class Driver {
  public:
-  Runner(const Deck& deck, const Scene& scene, bool quiet)
-      : deck_(deck), scene_(scene), system_(deck, scene), progress_(quiet) {
+  Driver(const Deck& deck, std::vector<Scene> scenes, int jobs, bool quiet, std::string dump_path)
+      : deck_(deck),
+        scenes_(std::move(scenes)),
+        jobs_(jobs),
+        quiet_(quiet),
+        dump_path_(std::move(dump_path)) {
     const ExcitationSpec& x = deck.excitation;
     frequencies_ = x.frequencies;
     if (x.kind == ExcitationKind::sine) frequencies_ = {x.frequency};
-    if (x.kind == ExcitationKind::prescribed && frequencies_.empty())
-      frequencies_ = {x.motion.frequency};
-    const double f_top = scene.highest_frequency > 0 ? scene.highest_frequency : first_mode();
-    sample_every_ = deck.output.every > 0 ? deck.output.every : 1.0 / (32 * f_top);
-    if (deck.output.energy) results_.energy.emplace();
+    const std::size_t r = scenes_.size(), f = frequencies_.size();
+    points_.assign(r, std::vector<std::optional<FrequencyPoint>>(f));
+    beds_.resize(r);
+    reports_.resize(r);
   }
 
-  // Continues from a checkpoint written after frequency `next_ - 1`.
   void resume_from(const Results& partial) {
+    const StateArrays& c = partial.checkpoint;
+    if (c.count("bed.reports") == 0)
+      throw InputError("the checkpoint was written by an older pdsim; run anew without --resume");
     results_.timeseries = partial.timeseries;
-    results_.frf = partial.frf;
-    results_.prescribed = partial.prescribed;
     results_.energy = partial.energy;
-    system_.restore(partial.checkpoint);
-    next_ = static_cast<std::size_t>(partial.checkpoint.at("next_frequency").at(0));
-    next_sample_ = partial.checkpoint.at("next_sample").at(0);
-    dissipated_n_ = partial.checkpoint.at("tallies").at(0);
-    dissipated_t_ = partial.checkpoint.at("tallies").at(1);
-    work_in_ = partial.checkpoint.at("tallies").at(2);
+    const auto& reports = c.at("bed.reports");
+    for (std::size_t r = 0; r < scenes_.size(); ++r) {
+      beds_[r] = get_state(c, "bed.r" + std::to_string(r) + ".");
+      reports_[r] = {reports.at(4 * r) != 0, reports.at(4 * r + 1) != 0, reports.at(4 * r + 2),
+                     reports.at(4 * r + 3)};
+      for (std::size_t i = 0; i < frequencies_.size(); ++i)
+        if (const auto it = c.find(point_key(r, i)); it != c.end()) {
+          points_[r][i] = unpack(it->second);
+          unpack_periods(c.at(point_key(r, i) + ".periods"), *points_[r][i]);
+        }
+    }
+    for (std::size_t r = 0; r < scenes_.size(); ++r)
+      if (StateArrays state = get_state(c, "task.r" + std::to_string(r) + "."); !state.empty())
+        task_states_[r] = std::move(state);
+    const auto& totals = c.at("run.totals");
+    particle_steps_ = static_cast<long long>(totals.at(0));
+    simulated_ = totals.at(1);
+    wall_before_ = totals.at(2);
   }
 
-  // Runs what is left; `checkpoint` is called after every finished frequency. With
-  // stop_after > 0, returns after that many frequencies (stopped() tells).
-  Results run(const std::function<void(const Results&)>& checkpoint, int stop_after = 0) {
-    const auto start = Clock::now();
+  Results run(const std::function<void(const Results&)>& checkpoint, int stop_after) {
+    started_ = Clock::now();
+    g_stop_runs = false;
+    checkpoint_ = checkpoint;
+    stop_after_ = stop_after;
     const ExcitationSpec& x = deck_.excitation;
-    if (x.kind == ExcitationKind::free_decay) {
-      const double f1 = first_mode();
-      configure(f1, 0.0);
-      system_.set_initial_displacement(x.initial_displacement);
-      while (system_.time() < x.duration - 1e-12) {
-        step();
-        progress_.update(system_.time(), f1, system_.time() / x.duration);
+    if (x.kind == ExcitationKind::free_decay || x.kind == ExcitationKind::sine) {
+      Progress progress(quiet_, 1, 1.0);
+      FrequencyRun run(deck_, scenes_[0],
+                       [&](double f, double done) { progress.update(0, done, f); });
+      reports_[0] = run.settle_bed();
+      if (x.kind == ExcitationKind::free_decay) {
+        run.run_free_decay();
+      } else {
+        points_[0][0] = run.run_frequency(x.frequency, FrequencyStart::carried);
       }
+      results_.timeseries = run.timeseries();
+      results_.energy = run.energy();
+      Seen from_start;
+      account(run, from_start);
+      progress.finish();
+    } else {
+      run_tasks();
     }
-    for (; next_ < frequencies_.size(); ++next_) {
-      run_frequency(frequencies_[next_]);
-      if (checkpoint && next_ + 1 < frequencies_.size()) {
-        Results snapshot = results_;
-        snapshot.checkpoint = system_.save();
-        snapshot.checkpoint["next_frequency"] = {static_cast<double>(next_ + 1)};
-        snapshot.checkpoint["next_sample"] = {next_sample_};
-        snapshot.checkpoint["tallies"] = {dissipated_n_, dissipated_t_, work_in_};
-        checkpoint(snapshot);
-        if (--stop_after == 0) {
-          stopped_ = true;
-          ++next_;
-          break;
-        }
+    if (!stopped_)
+      for (std::size_t i = 0; i < frequencies_.size(); ++i) {
+        std::vector<FrequencyPoint> runs;
+        for (const auto& per_frequency : points_) runs.push_back(*per_frequency[i]);
+        add_row(results_, runs, deck_);
       }
-    }
-    progress_.finish();
-    wall_time_ += std::chrono::duration<double>(Clock::now() - start).count();
-    provenance();
+    wall_ = wall_before_ + std::chrono::duration<double>(Clock::now() - started_).count();
+    provenance(results_);
     return results_;
   }
 
-  double wall_time() const { return wall_time_; }
   bool stopped() const { return stopped_; }
-  void dump(const std::string& path) const { system_.dump(path); }
-  std::size_t finished() const { return next_; }
+  std::size_t finished() const { return finished_; }
 
  private:
-  double first_mode() const {
-    if (!system_.has_structure()) return 1.0;
-    return natural_frequencies(system_.structure()).front();
+  static std::string point_key(std::size_t r, std::size_t i) {
+    return "point.r" + std::to_string(r) + ".f" + std::to_string(i);
+  }
+  bool independent() const { return deck_.excitation.start == FrequencyStart::independent; }
+
+  // Adds what `run` did since `seen` (its particle steps and simulated time) to the totals.
+  struct Seen {
+    long long steps = 0;
+    double time = 0;
+  };
+  void account(const FrequencyRun& run, Seen& seen) {
+    particle_steps_ += run.system().particle_steps() - seen.steps;
+    simulated_ += run.system().time() - seen.time;
+    seen = {run.system().particle_steps(), run.system().time()};
+    if (!backend_.empty()) return;
+    const auto& engines = run.system().engines();
+    backend_ = engines.empty() ? std::string("none (no particles)") : engines[0]->backend();
+    variant_ = engines.empty() ? std::string("none") : engines[0]->variant();
+    threads_ = engines.empty() ? 1 : engines[0]->threads();
   }
 
-  // Fixes the step for frequency f: an integer number of steps (a multiple of the coupling
-  // interval) per period, no longer than the scene's dt.
-  int configure(double frequency, double amplitude) {
-    const double period = 1.0 / frequency;
-    const int every = system_.steps_per_advance();
-    int steps = static_cast<int>(std::ceil(period / scene_.dt / every - 1e-9)) * every;
-    steps = std::max(steps, 32 * every);
-    Drive drive{deck_.excitation.input, amplitude, 2 * kPi * frequency};
-    system_.configure(period / steps, drive);
-    dt_ = period / steps;
-    return steps / every;
-  }
-
-  void step() {
-    if (g_interrupted) throw SimulationError("interrupted");
-    system_.advance();
-    const StepRecord& r = system_.last();
-    const double h = dt_ * system_.steps_per_advance();
-    dissipated_n_ += r.dissipated_normal;
-    dissipated_t_ += r.dissipated_tangential;
-    work_in_ += r.work_external + (system_.has_structure() ? 0.0 : r.power_in * h);
-    if (r.time + 1e-12 >= next_sample_) {
-      next_sample_ += sample_every_;
-      TimeSeries& ts = results_.timeseries;
-      ts.time.push_back(r.time);
-      ts.displacement.push_back(r.displacement);
-      ts.velocity.push_back(r.velocity);
-      ts.damper_force.push_back(r.damper_force);
-      if (results_.energy) {
-        EnergySeries& e = *results_.energy;
-        e.time.push_back(r.time);
-        e.kinetic.push_back(r.particle_kinetic + system_.structure_kinetic());
-        e.elastic.push_back(system_.structure_elastic());
-        e.dissipated_normal.push_back(dissipated_n_);
-        e.dissipated_tangential.push_back(dissipated_t_);
-        e.work_in.push_back(work_in_);
+  // Runs `work(k)` for k = 0..count-1, `jobs_` at a time; the first failure stops the others
+  // and is rethrown (a stop asked for by stop_after is not a failure).
+  void in_parallel(std::size_t count, const std::function<void(std::size_t)>& work) {
+    std::atomic<std::size_t> next{0};
+    std::exception_ptr failure;
+    std::mutex failure_mutex;
+    auto worker = [&] {
+      for (std::size_t k; (k = next++) < count && !g_stop_runs;) {
+        try {
+          work(k);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(failure_mutex);
+          if (!failure && !stopped_) failure = std::current_exception();
+          g_stop_runs = true;
+        }
       }
-    }
-    if (!std::isfinite(r.displacement))
-      throw SimulationError("the structure response became non-finite at t = " + number(r.time) +
-                            " s");
+    };
+    const std::size_t workers = std::min<std::size_t>(count, static_cast<std::size_t>(jobs_));
+    std::vector<std::thread> threads;
+    for (std::size_t w = 1; w < workers; ++w) threads.emplace_back(worker);
+    worker();
+    for (auto& t : threads) t.join();
+    if (failure) std::rethrow_exception(failure);
   }
 
-  void run_frequency(double frequency) {
-    const ExcitationSpec& x = deck_.excitation;
-    const bool prescribed = x.kind == ExcitationKind::prescribed;
-    const int samples = configure(frequency, prescribed ? x.motion.amplitude : x.amplitude);
-    PeriodTracker tracker(2 * kPi * frequency, samples);
-    const SettleSpec& settle = x.settle;
-    const bool fixed = x.kind == ExcitationKind::sine || (prescribed && x.duration > 0);
-    // A fixed run (sine, or prescribed with a duration) takes whole periods of its duration.
-    const int max_periods = fixed
-                                ? std::max(1, static_cast<int>(std::lround(x.duration * frequency)))
-                                : settle.max_periods;
-    bool converged = false;
-    while (tracker.periods() < max_periods) {
-      for (int s = 0; s < samples; ++s) {
-        step();
-        tracker.add(system_.last(), dt_ * system_.steps_per_advance());
+  // Dumps the particles of a failed run beside the output and says where.
+  [[noreturn]] void fail(const FrequencyRun& run, const SimulationError& e) {
+    if (g_interrupted || dump_path_.empty() || std::string(e.what()) == "interrupted") throw;
+    run.system().dump(dump_path_);
+    throw SimulationError(std::string(e.what()) + "\nparticle states written to " + dump_path_);
+  }
+
+  void settle_beds(Progress& progress) {
+    std::vector<std::size_t> missing;
+    for (std::size_t r = 0; r < scenes_.size(); ++r)
+      if (beds_[r].empty()) missing.push_back(r);
+    if (missing.empty()) return;
+    const std::string& file = deck_.bed.file;
+    const std::string fingerprint = bed_fingerprint(deck_, scenes_[0]);
+    if (!file.empty() && std::filesystem::exists(file)) {
+      Results saved = read_results(file);
+      if (saved.meta_text["bed_fingerprint"] != fingerprint ||
+          static_cast<std::size_t>(saved.meta_numbers["realisations"]) < scenes_.size())
+        throw InputError(
+            deck_.where("bed.file"), "bed.file",
+            "'" + file +
+                "' holds a bed settled for other particles, container, "
+                "contact, gravity, dt or realisations; delete it or name another file");
+      for (std::size_t r : missing) {
+        beds_[r] = get_state(saved.checkpoint, "bed.r" + std::to_string(r) + ".");
+        reports_[r] = {true, saved.meta_numbers["bed_settled"] != 0,
+                       saved.meta_numbers["bed_settle_time_s"], saved.meta_numbers["bed_speed"]};
       }
-      converged = tracker.converged(settle.tolerance, settle.min_periods, prescribed);
-      const double within = static_cast<double>(tracker.periods()) / max_periods;
-      progress_.update(
-          system_.time(), frequency,
-          (static_cast<double>(next_) + within) / static_cast<double>(frequencies_.size()));
-      if (!fixed && converged) break;
-    }
-    const PeriodSummary m = tracker.average(settle.average_periods);
-    if (prescribed) {
-      PrescribedTable& p = results_.prescribed;
-      p.frequency.push_back(frequency);
-      p.dissipated_power.push_back(m.energy_in * frequency);
-      p.force_amplitude.push_back(std::abs(m.force));
-      p.force_phase.push_back(std::arg(m.force));
+      bed_from_file_ = true;
       return;
     }
-    FrfTable& f = results_.frf;
-    f.frequency.push_back(frequency);
-    f.amplitude.push_back(std::abs(m.displacement));
-    f.phase.push_back(std::arg(m.displacement));
-    f.rms.push_back(std::sqrt(m.mean_square));
-    f.peak.push_back(m.peak);
-    f.periods.push_back(tracker.periods());
-    f.converged.push_back(converged ? 1 : 0);
-    f.dissipated_energy.push_back(m.energy_in);
-    f.dissipated_normal.push_back(m.dissipated_normal);
-    f.dissipated_tangential.push_back(m.dissipated_tangential);
+    in_parallel(missing.size(), [&](std::size_t k) {
+      const std::size_t r = missing[k];
+      FrequencyRun run(deck_, scenes_[r],
+                       [&](double f, double done) { progress.update(r, 0.1 * done, f); });
+      try {
+        reports_[r] = run.settle_bed();
+      } catch (const SimulationError& e) {
+        fail(run, e);
+      }
+      beds_[r] = run.save();
+      std::lock_guard<std::mutex> lock(mutex_);
+      Seen from_start;
+      account(run, from_start);
+    });
+    if (!file.empty()) {
+      Results saved;
+      saved.meta_text["bed_fingerprint"] = fingerprint;
+      saved.meta_text["deck"] = deck_.text;
+      saved.meta_numbers["realisations"] = double(scenes_.size());
+      saved.meta_numbers["bed_settled"] = reports_[0].settled;
+      saved.meta_numbers["bed_settle_time_s"] = reports_[0].time_s;
+      saved.meta_numbers["bed_speed"] = reports_[0].speed;
+      for (std::size_t r = 0; r < scenes_.size(); ++r)
+        put_state(saved.checkpoint, "bed.r" + std::to_string(r) + ".", beds_[r]);
+      write_results(file, saved, true);
+    }
   }
 
-  void provenance() {
-    auto& t = results_.meta_text;
-    auto& n = results_.meta_numbers;
+  void run_tasks() {
+    struct Task {
+      std::size_t realisation;
+      std::vector<std::size_t> frequencies;  // indices, in the order run
+    };
+    std::vector<Task> tasks;
+    for (std::size_t r = 0; r < scenes_.size(); ++r) {
+      if (independent()) {
+        for (std::size_t i = 0; i < frequencies_.size(); ++i)
+          if (!points_[r][i]) tasks.push_back({r, {i}});
+      } else {
+        Task t{r, {}};
+        for (std::size_t i = 0; i < frequencies_.size(); ++i)
+          if (!points_[r][i]) t.frequencies.push_back(i);
+        if (!t.frequencies.empty()) tasks.push_back(t);
+      }
+    }
+    double total = 0;
+    for (const Task& t : tasks) total += double(t.frequencies.size());
+    Progress progress(quiet_, std::max(tasks.size(), scenes_.size()), std::max(total, 1.0));
+    progress_ = &progress;
+    settle_beds(progress);
+    in_parallel(tasks.size(), [&](std::size_t k) {
+      const Task& task = tasks[k];
+      const std::size_t r = task.realisation;
+      double done = 0;
+      FrequencyRun run(deck_, scenes_[r],
+                       [&](double f, double d) { progress.update(k, done + d, f); });
+      StateArrays carried;  // copied under the lock: other tasks write their states meanwhile
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (const auto it = task_states_.find(r); it != task_states_.end()) carried = it->second;
+      }
+      if (!independent() && !carried.empty()) {
+        run.restore(carried);
+        if (r == 0) run.set_records(results_.timeseries, results_.energy);
+      } else {
+        run.restore(beds_[r]);
+      }
+      Seen seen{run.system().particle_steps(), run.system().time()};
+      for (std::size_t i : task.frequencies) {
+        FrequencyPoint point;
+        try {
+          point = run.run_frequency(frequencies_[i], deck_.excitation.start);
+        } catch (const SimulationError& e) {
+          fail(run, e);
+        }
+        done += 1;
+        progress.update(k, done, frequencies_[i]);
+        finished_point(run, r, i, point, seen);
+        if (stopped_) return;
+      }
+    });
+    progress.finish();
+  }
+
+  // Records a finished point, tells the log, and writes a checkpoint while points remain.
+  void finished_point(const FrequencyRun& run, std::size_t r, std::size_t i,
+                      const FrequencyPoint& point, Seen& seen) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    points_[r][i] = point;
+    ++finished_;
+    account(run, seen);
+    if (r == 0) {
+      if (independent()) {
+        append_segment(run.timeseries(), i);
+      } else {
+        results_.timeseries = run.timeseries();
+        results_.energy = run.energy();
+      }
+    }
+    progress_->say(describe(point, r));
+    std::size_t remaining = 0;
+    for (const auto& per_frequency : points_)
+      for (const auto& p : per_frequency) remaining += !p;
+    if (remaining == 0 || !checkpoint_) return;
+    Results snapshot = results_;
+    StateArrays& c = snapshot.checkpoint;
+    std::vector<double> reports;
+    for (std::size_t k = 0; k < scenes_.size(); ++k) {
+      put_state(c, "bed.r" + std::to_string(k) + ".", beds_[k]);
+      reports.insert(reports.end(), {double(reports_[k].ran), double(reports_[k].settled),
+                                     reports_[k].time_s, reports_[k].speed});
+      for (std::size_t f = 0; f < frequencies_.size(); ++f)
+        if (points_[k][f]) {
+          c[point_key(k, f)] = pack(*points_[k][f]);
+          c[point_key(k, f) + ".periods"] = pack_periods(*points_[k][f]);
+        }
+    }
+    c["bed.reports"] = reports;
+    if (!independent()) {
+      task_states_[r] = run.save();
+      for (const auto& [k, state] : task_states_)
+        put_state(c, "task.r" + std::to_string(k) + ".", state);
+    }
+    c["run.totals"] = {
+        double(particle_steps_), simulated_,
+        wall_before_ + std::chrono::duration<double>(Clock::now() - started_).count()};
+    provenance(snapshot);
+    checkpoint_(snapshot);
+    if (stop_after_ > 0 && --stop_after_ == 0) {
+      stopped_ = true;
+      g_stop_runs = true;
+    }
+  }
+
+  // Independent frequencies: realisation 0's time series, one segment per frequency (each from
+  // the settled bed's time), kept in the order of the frequency list.
+  void append_segment(const TimeSeries& segment, std::size_t index) {
+    segments_[index] = segment;
+    TimeSeries all;
+    std::vector<std::vector<double>*> to;
+    timeseries_columns(
+        all, [&](const char*, auto& column, const char*, const char*) { to.push_back(&column); });
+    for (const auto& [k, part] : segments_) {
+      std::size_t c = 0;
+      timeseries_columns(part, [&](const char*, const auto& column, const char*, const char*) {
+        to[c]->insert(to[c]->end(), column.begin(), column.end());
+        ++c;
+      });
+    }
+    results_.timeseries = all;
+  }
+
+  std::string describe(const FrequencyPoint& p, std::size_t r) const {
+    std::ostringstream s;
+    s.precision(4);
+    const bool prescribed = deck_.excitation.kind == ExcitationKind::prescribed;
+    const double size = std::abs(p.judged.mean);
+    s << "f = " << p.frequency << " Hz";
+    if (scenes_.size() > 1) s << " (realisation " << r + 1 << ")";
+    s << ": " << (prescribed ? "force " : "") << size * (prescribed ? 1.0 : 1e3)
+      << (prescribed ? " N" : " mm") << " +- "
+      << 100 * p.judged.amplitude_ci / std::max(size, 1e-300) << " %, " << p.judged.periods
+      << " periods (" << p.judged.discarded << " warm-up)";
+    s << (p.judged.converged ? ", converged" : ", NOT converged: " + p.judged.reason);
+    return s.str();
+  }
+
+  void provenance(Results& r) const {
+    auto& t = r.meta_text;
+    auto& n = r.meta_numbers;
     t["deck"] = deck_.text;
     t["deck_path"] = deck_.path;
     if (deck_.point > 0)
       t["sweep_point"] = std::to_string(deck_.point) + ": " + deck_.sweep.describe(deck_.point);
     t["title"] = deck_.title;
     t["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
-    const auto& engines = system_.engines();
-    t["backend"] = engines.empty() ? std::string("none (no particles)") : engines[0]->backend();
-    t["kernel_variant"] = engines.empty() ? std::string("none") : engines[0]->variant();
+    t["backend"] = backend_.empty() ? "none (no particles)" : backend_;
+    t["kernel_variant"] = variant_.empty() ? "none" : variant_;
     const char* schemes[] = {"loose", "interleaved", "tight"};
     t["coupling"] = schemes[static_cast<int>(deck_.coupling.scheme)];
-    t["dt_basis"] = scene_.dt_basis;
-    n["threads"] = engines.empty() ? 1 : engines[0]->threads();
-    n["dt"] = scene_.dt;
-    n["dt_limit"] = scene_.dt_limit;
-    n["wall_time_s"] = wall_time_;
-    n["particle_steps"] = static_cast<double>(system_.particle_steps());
-    n["particles"] = system_.particle_count();
-    n["simulated_time_s"] = system_.time();
+    const Scene& scene = scenes_[0];
+    t["dt_basis"] = scene.dt_basis;
+    const ExcitationKind kind = deck_.excitation.kind;
+    if (kind == ExcitationKind::stepped_sine || kind == ExcitationKind::prescribed)
+      t["start"] = start_name(deck_.excitation.start);
+    const BedReport& bed = reports_[0];
+    t["bed"] = !bed.ran         ? "not settled (bed.settle = false, or no gravity or particles)"
+               : bed_from_file_ ? "read from " + deck_.bed.file
+               : bed.settled
+                   ? "settled in " + number(bed.time_s) + " s"
+                   : "NOT settled within bed.max_time = " + number(deck_.bed.max_time) + " s";
+    n["bed_settled"] = bed.settled ? 1 : 0;
+    n["bed_settle_time_s"] = bed.time_s;
+    n["bed_speed"] = bed.speed;
+    n["realisations"] = double(scenes_.size());
+    n["jobs"] = jobs_;
+    n["threads"] = threads_;
+    n["dt"] = scene.dt;
+    n["dt_limit"] = scene.dt_limit;
+    n["wall_time_s"] = wall_;
+    n["particle_steps"] = double(particle_steps_);
+    int particles = 0;
+    for (const DamperScene& d : scene.dampers)
+      particles += static_cast<int>(d.engine.particles.size());
+    n["particles"] = particles;
+    n["simulated_time_s"] = simulated_;
   }
 
   const Deck& deck_;
-  const Scene& scene_;
-  CoupledSystem system_;
-  Progress progress_;
-  Results results_;
+  std::vector<Scene> scenes_;  // one per realisation
+  int jobs_;
+  bool quiet_;
+  std::string dump_path_;
   std::vector<double> frequencies_;
-  std::size_t next_ = 0;
-  bool stopped_ = false;
-  double dt_ = 0, sample_every_ = 0, next_sample_ = 0, wall_time_ = 0;
-  double dissipated_n_ = 0, dissipated_t_ = 0, work_in_ = 0;
+  std::vector<std::vector<std::optional<FrequencyPoint>>> points_;  // [realisation][frequency]
+  std::vector<StateArrays> beds_;
+  std::vector<BedReport> reports_;
+  std::map<std::size_t, StateArrays> task_states_;
+  std::map<std::size_t, TimeSeries> segments_;
+  Results results_;
+  std::function<void(const Results&)> checkpoint_;
+  Progress* progress_ = nullptr;
+  std::mutex mutex_;
+  int stop_after_ = 0;
+  bool stopped_ = false, bed_from_file_ = false;
+  std::size_t finished_ = 0;
+  long long particle_steps_ = 0;
+  double simulated_ = 0, wall_ = 0, wall_before_ = 0;
+  Clock::time_point started_ = Clock::now();
+  std::string backend_, variant_;
+  int threads_ = 1;
 };
 
-std::string summary_line(const Results& r, const std::string& path) {
+// The frequencies (Hz) whose points did not converge, as a list for the terminal.
+std::string unconverged(const std::vector<double>& frequency, const std::vector<int>& converged) {
+  std::string list;
+  for (std::size_t i = 0; i < frequency.size(); ++i)
+    if (!converged[i]) list += (list.empty() ? "" : ", ") + number(frequency[i]);
+  return list;
+}
+
+// The largest of `value` among converged points (index), or -1 when none converged.
+long peak_of(const std::vector<double>& value, const std::vector<int>& converged) {
+  long best = -1;
+  for (std::size_t i = 0; i < value.size(); ++i)
+    if (converged[i] && (best < 0 || value[i] > value[static_cast<std::size_t>(best)]))
+      best = static_cast<long>(i);
+  return best;
+}
+
+std::string summary_line(const Results& r, const std::string& path, const Deck& deck) {
   std::ostringstream s;
   s.precision(4);
-  if (!r.frf.frequency.empty()) {
-    const auto& a = r.frf.amplitude;
-    const auto peak = std::max_element(a.begin(), a.end()) - a.begin();
-    int converged = 0;
-    for (int c : r.frf.converged) converged += c;
-    s << "FRF: " << a.size() << " frequencies, peak amplitude " << 1e3 * a[std::size_t(peak)]
-      << " mm at " << r.frf.frequency[std::size_t(peak)] << " Hz, " << converged << "/" << a.size()
-      << " converged";
+  auto tally = [&](const std::vector<double>& frequency, const std::vector<int>& converged,
+                   const std::vector<double>& value, const std::vector<double>& ci, double scale,
+                   const char* what, const char* unit) {
+    int count = 0;
+    for (int c : converged) count += c;
+    s << frequency.size() << " frequencies, " << count << " converged";
+    const long k = peak_of(value, converged);
+    if (k >= 0)
+      s << "; peak " << what << " " << scale * value[std::size_t(k)] << " +- "
+        << scale * ci[std::size_t(k)] << " " << unit << " at " << frequency[std::size_t(k)]
+        << " Hz (of the converged points)";
+    if (count < static_cast<int>(frequency.size()))
+      s << "; NOT converged at " << unconverged(frequency, converged)
+        << " Hz: not results (give them more settle.max_periods, a looser settle.tolerance or "
+           "settle.realisations > 1)";
+  };
+  if (!r.frf.frequency.empty() && deck.excitation.kind == ExcitationKind::stepped_sine) {
+    s << "FRF: ";
+    tally(r.frf.frequency, r.frf.converged, r.frf.amplitude, r.frf.amplitude_ci, 1e3, "amplitude",
+          "mm");
+  } else if (!r.frf.frequency.empty()) {
+    s << "sine at " << r.frf.frequency[0] << " Hz: first harmonic " << 1e3 * r.frf.amplitude[0]
+      << " +- " << 1e3 * r.frf.amplitude_ci[0] << " mm"
+      << (r.frf.converged[0] ? "" : " (not stationary over the duration)");
   } else if (!r.prescribed.frequency.empty()) {
-    s << "prescribed motion: " << r.prescribed.frequency.size() << " frequencies, power "
-      << r.prescribed.dissipated_power.back() << " W, force amplitude "
-      << r.prescribed.force_amplitude.back() << " N at " << r.prescribed.frequency.back() << " Hz";
+    s << "prescribed motion: ";
+    tally(r.prescribed.frequency, r.prescribed.converged, r.prescribed.dissipated_power,
+          r.prescribed.dissipated_power_ci, 1.0, "power", "W");
   } else {
     s << "time history: " << r.timeseries.time.size() << " samples";
   }
@@ -290,9 +745,42 @@ std::string output_path(const Deck& deck, const RunOptions& options) {
   return std::filesystem::path(deck.path).stem().string() + ".h5";
 }
 
-Results simulate(const Deck& deck, const Scene& scene, bool quiet) {
-  Runner runner(deck, scene, quiet);
-  return runner.run({});
+namespace {
+
+// The scene of every realisation (fill seeds seed + r of every damper) and how many runs go side
+// by side: one per core unless told, the cores shared out among them.
+struct Plan {
+  std::vector<Scene> scenes;
+  int jobs = 1;
+};
+
+Plan plan_run(const Deck& deck, const Scene& scene, int threads, int jobs,
+              std::optional<Backend> backend) {
+  const ExcitationSpec& x = deck.excitation;
+  const bool swept = x.kind == ExcitationKind::stepped_sine || x.kind == ExcitationKind::prescribed;
+  const int realisations = swept ? x.settle.realisations : 1;
+  const int tasks = realisations * (swept && x.start == FrequencyStart::independent
+                                        ? static_cast<int>(x.frequencies.size())
+                                        : 1);
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int total = threads > 0 ? threads : deck.solver.threads > 0 ? deck.solver.threads : cores;
+  Plan plan;
+  plan.jobs = std::max(1, std::min(tasks, jobs > 0 ? jobs : total));
+  const int each = tasks > 1 ? std::max(1, total / plan.jobs) : threads;
+  for (int r = 0; r < realisations; ++r) {
+    Deck seeded = deck;
+    for (DamperSpec& d : seeded.dampers) d.particles.seed += static_cast<std::uint64_t>(r);
+    plan.scenes.push_back(r == 0 && each == threads ? scene : build_scene(seeded, each, backend));
+  }
+  return plan;
+}
+
+}  // namespace
+
+Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
+  Plan plan = plan_run(deck, scene, scene.threads, jobs, std::nullopt);
+  Driver driver(deck, std::move(plan.scenes), plan.jobs, quiet, "");
+  return driver.run({}, 0);
 }
 
 RunReport run_deck(const Deck& deck, const RunOptions& options) {
@@ -308,7 +796,8 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   const Scene scene = build_scene(deck, options.threads, options.backend);
   if (const fs::path folder = fs::path(path).parent_path(); deck.point > 0 && !folder.empty())
     fs::create_directories(folder);
-  Runner runner(deck, scene, options.quiet);
+  Plan plan = plan_run(deck, scene, options.threads, options.jobs, options.backend);
+  Driver driver(deck, std::move(plan.scenes), plan.jobs, options.quiet, path + ".blowup.csv");
   if (options.resume) {
     if (!fs::exists(partial))
       throw InputError(partial + ": nothing to resume (no checkpoint of an interrupted run)");
@@ -319,34 +808,27 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
                        "without --resume");
     if (saved.checkpoint.empty())
       throw InputError(partial + ": holds no checkpoint; run it anew without --resume");
-    runner.resume_from(saved);
+    driver.resume_from(saved);
   }
   g_interrupted = 0;
   auto previous = std::signal(SIGINT, on_interrupt);
   Results results;
   try {
-    results = runner.run(
-        [&](const Results& snapshot) {
-          Results r = snapshot;
-          r.meta_text["deck"] = deck.text;
-          write_results(path, r, false);
-        },
-        options.stop_after);
-  } catch (const SimulationError& e) {
+    results = driver.run([&](const Results& snapshot) { write_results(path, snapshot, false); },
+                         options.stop_after);
+  } catch (const SimulationError&) {
     std::signal(SIGINT, previous);
     if (g_interrupted)
       throw SimulationError(std::string("interrupted; finished frequencies are in ") + partial +
                             ", continue with --resume");
-    const std::string dump = path + ".blowup.csv";
-    runner.dump(dump);
-    throw SimulationError(std::string(e.what()) + "\nparticle states written to " + dump);
+    throw;
   }
   std::signal(SIGINT, previous);
-  if (runner.stopped())
-    return {partial, "stopped after " + std::to_string(runner.finished()) +
+  if (driver.stopped())
+    return {partial, "stopped after " + std::to_string(driver.finished()) +
                          " frequencies as asked; continue with --resume"};
   write_results(path, results, true);
-  return {path, summary_line(results, path)};
+  return {path, summary_line(results, path, deck)};
 }
 
 std::string check_report(const Deck& deck, const Scene& scene) {
@@ -391,15 +873,26 @@ std::string check_report(const Deck& deck, const Scene& scene) {
       << static_cast<long>(std::ceil(1.0 / (scene.highest_frequency * scene.dt))) << " at "
       << scene.highest_frequency << " Hz\n";
   }
-  // Estimated cost: simulated time x steps/s x particles, at an assumed 1e7 particle-steps/s.
   const ExcitationSpec& x = deck.excitation;
+  const SettleSpec& settle = x.settle;
+  const bool judged = x.kind == ExcitationKind::stepped_sine ||
+                      (x.kind == ExcitationKind::prescribed && x.duration <= 0);
+  if (judged)
+    s << "frequencies: " << x.frequencies.size() << ", start = " << start_name(x.start)
+      << "; steady when the 95 % interval is within " << 100 * settle.tolerance << " % ("
+      << settle.min_periods << " to " << settle.max_periods << " periods, " << settle.batches
+      << " batches, " << settle.realisations << " realisation"
+      << (settle.realisations > 1 ? "s" : "") << ")\n";
+  if (deck.bed.settle)
+    s << "bed: settled under gravity first, until no particle moves faster than " << deck.bed.speed
+      << " m/s for " << kBedHold_s << " s (at most " << deck.bed.max_time << " s)"
+      << (deck.bed.file.empty() ? "" : "; kept in " + deck.bed.file) << "\n";
+  // Estimated cost: simulated time x steps/s x particles, at an assumed 1e7 particle-steps/s.
   double simulated = 0;
-  if (x.kind == ExcitationKind::stepped_sine)
-    for (double f : x.frequencies) simulated += x.settle.max_periods / f;
-  else if (x.kind == ExcitationKind::prescribed && x.duration <= 0)
+  if (judged)
     for (double f :
          (x.frequencies.empty() ? std::vector<double>{x.motion.frequency} : x.frequencies))
-      simulated += x.settle.max_periods / f;
+      simulated += settle.realisations * settle.max_periods / f;
   else
     simulated = x.duration * static_cast<double>(std::max<std::size_t>(1, x.frequencies.size()));
   s << "simulated time: at most " << simulated << " s";

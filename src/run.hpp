@@ -17,6 +17,7 @@ struct RunOptions {
   bool force = false;
   bool quiet = false;  // no progress lines
   int threads = 0;
+  int jobs = 0;  // runs side by side (independent frequencies, realisations); 0 = per core
   std::optional<Backend> backend;
   int stop_after = 0;  // stop (checkpoint kept) after this many frequencies of this session
 };
@@ -33,8 +34,9 @@ std::string output_path(const Deck& deck, const RunOptions& options);
 // (existing output without --force, resume mismatch) and SimulationError for blow-ups.
 RunReport run_deck(const Deck& deck, const RunOptions& options);
 
-// Runs the deck and returns the results without writing a file (tests, benchmarks).
-Results simulate(const Deck& deck, const Scene& scene, bool quiet = true);
+// Runs the deck and returns the results without writing a file (tests, benchmarks); `jobs` runs
+// side by side when the deck has several (independent frequencies, realisations).
+Results simulate(const Deck& deck, const Scene& scene, bool quiet = true, int jobs = 1);
 
 // `v` in at most `precision` significant digits (messages, tables).
 std::string number(double v, int precision = 4);

@@ -233,6 +233,31 @@ LinearStructure build_structure(const Deck& deck) {
                    "no structure to build (expected \"sdof\" or \"beam\")");
 }
 
+Eigen::VectorXcd harmonic_response(const LinearStructure& s, double omega,
+                                   const Eigen::VectorXcd& load,
+                                   const std::vector<std::complex<double>>& impedance,
+                                   std::complex<double> base) {
+  const std::complex<double> i(0, 1);
+  Eigen::MatrixXcd dynamic = (s.stiffness - omega * omega * s.mass).cast<std::complex<double>>() +
+                             i * omega * s.damping.cast<std::complex<double>>();
+  Eigen::VectorXcd rhs = load;
+  for (std::size_t k = 0; k < impedance.size(); ++k) {
+    const Eigen::VectorXcd t =
+        s.attachment_translation.row(static_cast<int>(k)).transpose().cast<std::complex<double>>();
+    dynamic += impedance[k] * t * t.transpose();
+    rhs -= impedance[k] * base * t;
+  }
+  return dynamic.partialPivLu().solve(rhs);
+}
+
+Eigen::VectorXd static_response(const LinearStructure& s, const Eigen::VectorXd& load) {
+  const Eigen::LDLT<MatrixXd> ldlt(s.stiffness);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive() ||
+      ldlt.vectorD().minCoeff() <= 1e-12 * ldlt.vectorD().maxCoeff())
+    return VectorXd::Zero(s.size());
+  return ldlt.solve(load);
+}
+
 std::vector<double> natural_frequencies(const LinearStructure& s) {
   Eigen::GeneralizedSelfAdjointEigenSolver<MatrixXd> eigen(s.stiffness, s.mass,
                                                            Eigen::EigenvaluesOnly);

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <complex>
 #include <memory>
 #include <string>
 #include <vector>
@@ -53,6 +54,21 @@ struct LinearStructure {
 // Builds the model from the deck (beam: assembly, supports, optional modal reduction).
 // Throws InputError for inconsistent input (e.g. an attachment beyond the beam).
 LinearStructure build_structure(const Deck& deck);
+
+// Steady harmonic response to the load phasor `load` at omega (rad/s): q = Im(Q e^{i phase})
+// for a load Im(P e^{i phase}). Damper k acts on the structure as the impedance Z_k (N/m, the
+// force it takes per unit displacement, complex) of its absolute displacement t_k Q + base,
+// t_k = attachment_translation.row(k):
+//   (K - w^2 M + i w C + sum_k Z_k t_k^T t_k) Q = P - sum_k Z_k t_k^T base.
+// A rigid mass m in a container is Z = -m w^2.
+Eigen::VectorXcd harmonic_response(const LinearStructure& s, double omega,
+                                   const Eigen::VectorXcd& load,
+                                   const std::vector<std::complex<double>>& impedance,
+                                   std::complex<double> base);
+
+// Static displacement K q = load; zero when K is singular (a structure free to move as a body
+// has no static state under a net load).
+Eigen::VectorXd static_response(const LinearStructure& s, const Eigen::VectorXd& load);
 
 // Undamped natural frequencies, Hz, ascending (rigid-body modes give 0).
 std::vector<double> natural_frequencies(const LinearStructure& s);

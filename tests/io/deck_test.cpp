@@ -113,7 +113,13 @@ TEST_CASE("a deck with every section keeps its values, integers read as reals") 
   CHECK(e.settle.max_periods == 50);
   CHECK(e.settle.tolerance == 1e-4);
   CHECK(e.settle.average_periods == 3);
-  CHECK(e.settle.samples_per_period == 64);
+  CHECK(e.settle.batches == 4);
+  CHECK(e.settle.realisations == 1);
+  CHECK(e.start == FrequencyStart::carried);
+  CHECK_FALSE(deck.bed.settle);  // gravity acts on particles, but the deck says no
+  CHECK(deck.bed.speed == 2e-3);
+  CHECK(deck.bed.max_time == 0.5);
+  CHECK(deck.bed.file == "bed.h5");
 
   CHECK(deck.coupling.scheme == CouplingScheme::tight);
   CHECK(deck.coupling.every == 4);
@@ -204,7 +210,9 @@ TEST_CASE("the example decks parse with the values they document") {
   CHECK(saeki.structure.mass == 2.37);
   CHECK(saeki.structure.stiffness == 21500.0);
   CHECK(saeki.dampers.at(0).particles.count == 250);
-  REQUIRE(saeki.excitation.frequencies.size() == 9);  // 13..17 step 0.5
+  REQUIRE(saeki.excitation.frequencies.size() == 17);  // 13..17 step 0.25
+  CHECK(saeki.excitation.start == FrequencyStart::predicted);
+  CHECK(saeki.bed.settle);  // gravity on particles
   CHECK(saeki.excitation.frequencies.back() == 17.0);
   CHECK(saeki.contact.young == 2.0e9);
   CHECK(saeki.output.file == "saeki_250.h5");
@@ -214,8 +222,10 @@ TEST_CASE("the example decks parse with the values they document") {
 
   const Deck bare = load_deck(kExamples + "bare_sdof.toml");
   CHECK(bare.dampers.empty());
-  CHECK(bare.excitation.frequencies.size() == 25);  // 12..18 step 0.25
-  CHECK(bare.excitation.settle.max_periods == 2000);
+  CHECK(bare.excitation.frequencies.size() == 25);   // 12..18 step 0.25
+  CHECK(bare.excitation.settle.max_periods == 400);  // the default
+  CHECK(bare.excitation.settle.tolerance == 0.02);
+  CHECK_FALSE(bare.bed.settle);  // nothing to settle
 
   const Deck box = load_deck(kExamples + "shaken_box.toml");
   CHECK(box.structure.kind == StructureKind::none);
@@ -364,6 +374,35 @@ TEST_CASE("absurd counts: particles, elements, periods out of order") {
       "9:26: 'excitation.settle.min_periods': ", "expected at most max_periods (60), got 100");
   check_error(stepped + "settle = { max_periods = 5 }\n", "9:26: 'excitation.settle.max_periods': ",
               "expected at least min_periods (10), got 5");
+  check_error(stepped + "settle = { tolerance = 2 }\n",
+              "9:24: 'excitation.settle.tolerance': ", "expected a number in (0, 1], got 2");
+  check_error(stepped + "start = \"physical\"\n",
+              "9:9: 'excitation.start': ", "one of \"predicted\", \"carried\", \"independent\"");
+}
+
+TEST_CASE("realisations need a random fill, and the energy ledger one continuous run") {
+  const std::string stepped =
+      kSdof + kContact +
+      "[[damper]]\ncontainer = { shape = \"box\", size = [0.05, 0.05, 0.05] }\n"
+      "particles = { count = 10, diameter = 0.005, density = 7800, "
+      "fill = \"lattice\" }\n"
+      "[excitation]\nkind = \"stepped_sine\"\namplitude = 1\n"
+      "frequencies = [15]\n";
+  const Deck one = parse_deck(stepped, "deck.toml");
+  CHECK(one.excitation.start == FrequencyStart::predicted);  // the default
+  CHECK_FALSE(one.bed.settle);                               // no gravity: nothing to settle
+  const std::string again = "settle = { realisations = 3 }\n";
+  const std::string message = error_of(stepped + again);
+  CHECK(message.find("'excitation.settle.realisations'") != std::string::npos);
+  CHECK(message.find("fill = \"random\"") != std::string::npos);
+  std::string random = stepped;
+  random.replace(random.find("\"lattice\""), 9, "\"random\"");
+  CHECK(parse_deck(random + again, "deck.toml").excitation.settle.realisations == 3);
+  const std::string energy = error_of(random + again + "[output]\nenergy = true\n");
+  CHECK(energy.find("'output.energy'") != std::string::npos);
+  CHECK(energy.find("one continuous run") != std::string::npos);
+  CHECK(error_of(random + "start = \"independent\"\n[output]\nenergy = true\n")
+            .find("'output.energy'") != std::string::npos);
 }
 
 TEST_CASE("frequencies: start > stop, step <= 0, non-positive values, too many") {

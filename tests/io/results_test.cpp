@@ -10,6 +10,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace fs = std::filesystem;
@@ -56,56 +57,63 @@ Results full_results() {
                     {"dt", 2.0 / 3.0 * 1e-6},
                     {"wall_time_s", 12.345678901234567},
                     {"particle_steps", 1.25e9}};
-  r.timeseries = {awkward(1), awkward(2), awkward(3), awkward(4)};
-  r.frf.frequency = {10.0, 15.16, 20.0};
-  r.frf.amplitude = {1.0 / 7.0 * 1e-3, 3.24e-3, 1.09e-3};
-  r.frf.phase = {-0.1, -1.5707963267948966, -3.0};
-  r.frf.rms = {1e-4, 2e-3, 7e-4};
-  r.frf.peak = {1.4e-4, 3.3e-3, 1.1e-3};
-  r.frf.periods = {40, 2147483647, -2147483647 - 1};
-  r.frf.converged = {1, 0, 1};
-  r.frf.dissipated_energy = {1e-5, 2e-3, 3e-4};
-  r.frf.dissipated_normal = {6e-6, 1.5e-3, 2e-4};
-  r.frf.dissipated_tangential = {4e-6, 5e-4, 1e-4};
-  r.prescribed = {{5.0, 25.0}, {0.1 / 3.0, 0.2 / 3.0}, {0.5, 0.7}, {0.25, -0.25}};
-  r.energy =
-      pdsim::EnergySeries{awkward(5), awkward(6), awkward(7), awkward(8), awkward(9), awkward(10)};
+  // Every column of every table, each with its own awkward values (ints: the extremes).
+  double seed = 1;
+  auto fill = [&](const char*, auto& column, const char*, const char*) {
+    using T = typename std::decay_t<decltype(column)>::value_type;
+    if constexpr (std::is_same_v<T, int>)
+      column = {40, 2147483647, -2147483647 - 1};
+    else
+      column = awkward(seed++);
+  };
+  pdsim::timeseries_columns(r.timeseries, fill);
+  pdsim::frf_columns(r.frf, fill);
+  pdsim::prescribed_columns(r.prescribed, fill);
+  pdsim::period_columns(r.periods, fill);
+  pdsim::energy_columns(r.energy.emplace(), fill);
   r.checkpoint = {{"structure_state", {1e-3, -2e-4, 0.5}},
                   {"particle_positions", awkward(11)},
                   {"rng_state", {}}};
   return r;
 }
 
+// Column by column, through the same lists the writer and the reader walk.
+template <class Table, class Columns>
+void check_columns(const Table& a, const Table& b, Columns columns) {
+  std::vector<std::string> names;
+  std::vector<std::vector<double>> doubles;
+  std::vector<std::vector<int>> ints;
+  columns(a, [&](const char* name, const auto& column, const char*, const char*) {
+    names.emplace_back(name);
+    if constexpr (std::is_same_v<typename std::decay_t<decltype(column)>::value_type, int>)
+      ints.push_back(column), doubles.emplace_back();
+    else
+      doubles.push_back(column), ints.emplace_back();
+  });
+  std::size_t k = 0;
+  columns(b, [&](const char* name, const auto& column, const char*, const char*) {
+    CAPTURE(name);
+    if constexpr (std::is_same_v<typename std::decay_t<decltype(column)>::value_type, int>)
+      CHECK(column == ints[k]);
+    else
+      CHECK(column == doubles[k]);
+    ++k;
+  });
+  CHECK(k == names.size());
+}
+
 void check_equal(const Results& a, const Results& b) {
   CHECK(a.meta_text == b.meta_text);
   CHECK(a.meta_numbers == b.meta_numbers);
-  CHECK(a.timeseries.time == b.timeseries.time);
-  CHECK(a.timeseries.displacement == b.timeseries.displacement);
-  CHECK(a.timeseries.velocity == b.timeseries.velocity);
-  CHECK(a.timeseries.damper_force == b.timeseries.damper_force);
-  CHECK(a.frf.frequency == b.frf.frequency);
-  CHECK(a.frf.amplitude == b.frf.amplitude);
-  CHECK(a.frf.phase == b.frf.phase);
-  CHECK(a.frf.rms == b.frf.rms);
-  CHECK(a.frf.peak == b.frf.peak);
-  CHECK(a.frf.periods == b.frf.periods);
-  CHECK(a.frf.converged == b.frf.converged);
-  CHECK(a.frf.dissipated_energy == b.frf.dissipated_energy);
-  CHECK(a.frf.dissipated_normal == b.frf.dissipated_normal);
-  CHECK(a.frf.dissipated_tangential == b.frf.dissipated_tangential);
-  CHECK(a.prescribed.frequency == b.prescribed.frequency);
-  CHECK(a.prescribed.dissipated_power == b.prescribed.dissipated_power);
-  CHECK(a.prescribed.force_amplitude == b.prescribed.force_amplitude);
-  CHECK(a.prescribed.force_phase == b.prescribed.force_phase);
+  check_columns(a.timeseries, b.timeseries,
+                [](auto& t, auto&& f) { pdsim::timeseries_columns(t, f); });
+  check_columns(a.frf, b.frf, [](auto& t, auto&& f) { pdsim::frf_columns(t, f); });
+  check_columns(a.prescribed, b.prescribed,
+                [](auto& t, auto&& f) { pdsim::prescribed_columns(t, f); });
+  check_columns(a.periods, b.periods, [](auto& t, auto&& f) { pdsim::period_columns(t, f); });
   REQUIRE(a.energy.has_value() == b.energy.has_value());
-  if (a.energy) {
-    CHECK(a.energy->time == b.energy->time);
-    CHECK(a.energy->kinetic == b.energy->kinetic);
-    CHECK(a.energy->elastic == b.energy->elastic);
-    CHECK(a.energy->dissipated_normal == b.energy->dissipated_normal);
-    CHECK(a.energy->dissipated_tangential == b.energy->dissipated_tangential);
-    CHECK(a.energy->work_in == b.energy->work_in);
-  }
+  if (a.energy)
+    check_columns(*a.energy, *b.energy, [](auto& t, auto&& f) { pdsim::energy_columns(t, f); });
   CHECK(a.checkpoint == b.checkpoint);
 }
 
@@ -218,7 +226,10 @@ TEST_CASE("results: h5dump finds the object names of the brief's output contract
                             "/timeseries/damper_force",
                             "/frf/frequency",
                             "/frf/amplitude",
+                            "/frf/amplitude_ci",
                             "/frf/phase",
+                            "/frf/phase_ci",
+                            "/frf/periods_discarded",
                             "/frf/rms",
                             "/frf/peak",
                             "/frf/periods",
@@ -239,8 +250,15 @@ TEST_CASE("results: h5dump finds the object names of the brief's output contract
                             "/checkpoint/structure_state"};
   for (const char* dataset : datasets) {
     CAPTURE(dataset);
-    CHECK(h5dump("-H -d " + std::string(dataset) + " '" + path + "'", dir).has_value());
+    const auto header = h5dump("-H -d " + std::string(dataset) + " '" + path + "'", dir);
+    CHECK(header.has_value());
+    // Every dataset of the contract carries its units (checkpoint arrays are restart data).
+    if (std::string(dataset).rfind("/checkpoint", 0) != 0)
+      CHECK(h5dump("-a " + std::string(dataset) + "/units '" + path + "'", dir).has_value());
   }
+  const auto units = h5dump("-a /frf/amplitude/units '" + path + "'", dir);
+  REQUIRE(units.has_value());
+  CHECK(units->find("\"m\"") != std::string::npos);
   for (const char* attribute : {"deck", "version", "backend", "threads", "dt", "wall_time_s",
                                 "particle_steps", "complete"}) {
     CAPTURE(attribute);

@@ -1,0 +1,260 @@
+#include "src/frequency_run.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace pdsim {
+
+std::atomic<bool> g_stop_runs{false};
+
+namespace {
+// The predicted start's refinement: rounds of a few periods each (see run_frequency).
+constexpr int kRefinements = 4, kProbePeriods = 3;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+}  // namespace
+
+FrequencyRun::FrequencyRun(const Deck& deck, const Scene& scene, Progress progress)
+    : deck_(deck), scene_(scene), system_(deck, scene), progress_(std::move(progress)) {
+  const double f_top = scene.highest_frequency > 0 ? scene.highest_frequency : first_mode();
+  sample_every_ = deck.output.every > 0 ? deck.output.every : 1.0 / (32 * f_top);
+  if (deck.output.energy) energy_.emplace();
+  // Before anything is measured the bed moves with its container: a rigid mass carrying its
+  // weight's component along the structure's direction.
+  for (const DamperScene& d : scene.dampers) {
+    bed_mass_.push_back(d.particle_mass);
+    const double along = deck.gravity && deck.structure.kind != StructureKind::none
+                             ? dot(*deck.gravity, deck.structure.direction)
+                             : 0.0;
+    bed_weight_.push_back(d.particle_mass * along);
+  }
+  effective_mass_ = bed_mass_;
+  effective_damping_.assign(bed_mass_.size(), 0.0);
+  mean_force_ = bed_weight_;
+}
+
+double FrequencyRun::first_mode() const {
+  if (!system_.has_structure()) return 1.0;
+  return natural_frequencies(system_.structure()).front();
+}
+
+BedReport FrequencyRun::settle_bed() {
+  BedReport report;
+  if (!deck_.bed.settle || system_.engines().empty()) return report;
+  report.ran = true;
+  const double dt = scene_.dt;
+  const long long hold = std::llround(std::ceil(kBedHold_s / dt));
+  const long long most = std::llround(std::ceil(deck_.bed.max_time / dt));
+  long long calm = 0, steps = 0;
+  while (steps < most && calm < hold) {
+    if (g_stop_runs) throw SimulationError("interrupted");
+    report.speed = system_.settle_step(dt);
+    calm = report.speed <= deck_.bed.speed ? calm + 1 : 0;
+    ++steps;
+    if (progress_ && steps % 2000 == 0) progress_(0.0, double(steps) / double(most));
+  }
+  report.settled = calm >= hold;
+  report.time_s = double(steps) * dt;
+  return report;
+}
+
+// Fixes the step for frequency f: an integer number of steps (a multiple of the coupling
+// interval) per period, no longer than the scene's dt. The drive continues the phase it had,
+// so that the input has no jump (a base does not teleport).
+int FrequencyRun::configure(double frequency, double amplitude) {
+  const double period = 1.0 / frequency;
+  const int every = system_.steps_per_advance();
+  const double intervals = std::ceil(period / scene_.dt / every - 1e-9);
+  if (!(intervals < double(1 << 30) / every))
+    throw SimulationError("a period of " + std::to_string(frequency) + " Hz takes " +
+                          std::to_string(intervals * every) +
+                          " steps of dt; more than a run can count (raise dt or the frequency)");
+  const int steps = std::max(static_cast<int>(intervals), 32) * every;
+  const Drive& old = system_.drive();
+  const double angle = restored_ ? restored_angle_ : old.omega > 0 ? old.angle(system_.time()) : 0;
+  restored_ = false;
+  Drive drive{deck_.excitation.input, amplitude, 2 * kPi * frequency, system_.time(),
+              std::fmod(angle, 2 * kPi)};
+  system_.configure(period / steps, drive);
+  dt_ = period / steps;
+  frequency_ = frequency;
+  return steps / every;
+}
+
+void FrequencyRun::step() {
+  if (g_stop_runs) throw SimulationError("interrupted");
+  system_.advance();
+  const StepRecord& r = system_.last();
+  const double h = dt_ * system_.steps_per_advance();
+  dissipated_n_ += r.dissipated_normal;
+  dissipated_t_ += r.dissipated_tangential;
+  work_in_ += r.work_external + (system_.has_structure() ? 0.0 : r.power_in * h);
+  if (r.time + 1e-12 >= next_sample_) {
+    next_sample_ += sample_every_;
+    TimeSeries& ts = timeseries_;
+    ts.time.push_back(r.time);
+    ts.displacement.push_back(r.displacement);
+    ts.velocity.push_back(r.velocity);
+    ts.damper_force.push_back(r.damper_force);
+    ts.frequency.push_back(frequency_);
+    if (energy_) {
+      EnergySeries& e = *energy_;
+      e.time.push_back(r.time);
+      e.kinetic.push_back(r.particle_kinetic + system_.structure_kinetic());
+      e.elastic.push_back(system_.structure_elastic());
+      e.dissipated_normal.push_back(dissipated_n_);
+      e.dissipated_tangential.push_back(dissipated_t_);
+      e.work_in.push_back(work_in_);
+    }
+  }
+  if (!std::isfinite(r.displacement))
+    throw SimulationError(
+        "the structure response became non-finite at t = " + std::to_string(r.time) + " s");
+}
+
+std::vector<std::complex<double>> FrequencyRun::impedance() const {
+  const double w = system_.drive().omega;
+  std::vector<std::complex<double>> z;
+  for (std::size_t k = 0; k < effective_mass_.size(); ++k)
+    z.emplace_back(-effective_mass_[k] * w * w, w * effective_damping_[k]);
+  return z;
+}
+
+std::complex<double> FrequencyRun::predict_start() {
+  const Eigen::VectorXcd harmonic = system_.predicted_harmonic(impedance());
+  system_.start_on(harmonic, mean_force_);
+  return system_.response_of(harmonic);
+}
+
+// The damper as an equivalent mass and viscous damper, Z = -m w^2 + i c w, from its measured
+// first harmonics (Z = -F / U): exact for a bed that moves as a rigid body, and the
+// equivalent-linear estimate otherwise, carried to the next frequency.
+void FrequencyRun::learn_impedance(const PeriodSummary& mean, double omega) {
+  for (std::size_t k = 0; k < effective_mass_.size(); ++k) {
+    const std::complex<double> u = mean.container[k];
+    if (std::abs(u) == 0) continue;
+    const std::complex<double> z = -mean.damper_force[k] / u;
+    effective_mass_[k] = -z.real() / (omega * omega);
+    effective_damping_[k] = z.imag() / omega;
+    mean_force_[k] = mean.damper_force_mean[k];
+  }
+}
+
+FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart start) {
+  const ExcitationSpec& x = deck_.excitation;
+  const bool prescribed = x.kind == ExcitationKind::prescribed;
+  const int samples = configure(frequency, prescribed ? x.motion.amplitude : x.amplitude);
+  PeriodTracker tracker(samples, system_.engines().size());
+  const double h = dt_ * system_.steps_per_advance(), omega = 2 * kPi * frequency;
+  auto run_period = [&] {
+    for (int s = 0; s < samples; ++s) {
+      const double angle = system_.drive().angle(system_.time());
+      step();
+      tracker.add(system_.last(), h, angle, system_.damper_displacements(),
+                  system_.damper_forces());
+    }
+  };
+  const SettleSpec& settle = x.settle;
+  // A fixed run (sine, or prescribed with a duration) takes whole periods of its duration.
+  const bool fixed = x.kind == ExcitationKind::sine || (prescribed && x.duration > 0);
+  const int max_periods = fixed ? std::max(1, static_cast<int>(std::lround(x.duration * frequency)))
+                                : settle.max_periods;
+  // The predicted start, refined: the damper's impedance measured over a few periods at this
+  // frequency gives a better prediction, and while that moves the structure's state by more
+  // than a quarter of the tolerance the structure is put on it again, so that it does not ring
+  // at its own frequency for hundreds of periods (a transient decays over 1 / (zeta w) seconds).
+  // A prediction that stops improving by half a round is limited by the bed's own scatter, and
+  // is left. Those periods are warm-up.
+  int settled_from = 0;
+  if (!prescribed && start != FrequencyStart::carried) {
+    std::complex<double> predicted = predict_start();
+    double moved_before = kInfinity;
+    for (int round = 0; round < kRefinements && !system_.engines().empty() &&
+                        tracker.periods() + kProbePeriods <= max_periods / 2;
+         ++round) {
+      for (int k = 0; k < kProbePeriods; ++k) run_period();
+      learn_impedance(tracker.mean_from(tracker.periods() - kProbePeriods), omega);
+      const std::complex<double> next =
+          system_.response_of(system_.predicted_harmonic(impedance()));
+      const double moved = std::abs(next - predicted);
+      if (moved <= 0.25 * settle.tolerance * std::abs(next) || moved > 0.5 * moved_before) break;
+      moved_before = moved;
+      predicted = predict_start();
+      settled_from = tracker.periods();
+    }
+  }
+  auto judge = [&] {
+    const auto all = prescribed ? tracker.force_series() : tracker.displacement_series();
+    const std::vector<std::complex<double>> series(all.begin() + settled_from, all.end());
+    const int n = static_cast<int>(series.size());
+    // With R realisations the point's interval is over their means, about sqrt(R) narrower
+    // than each run's own.
+    const SteadyStateCriteria criteria{settle.tolerance * std::sqrt(double(settle.realisations)),
+                                       settle.min_periods, settle.batches};
+    Stationary s =
+        analyse_periods(series, criteria,
+                        settle.average_periods > 0 ? std::max(0, n - settle.average_periods) : -1);
+    s.periods += settled_from;
+    s.discarded += settled_from;
+    return s;
+  };
+  while (tracker.periods() < max_periods) {
+    run_period();
+    if (progress_) progress_(frequency, double(tracker.periods()) / max_periods);
+    if (!fixed && tracker.periods() - settled_from >= settle.min_periods && judge().converged)
+      break;
+  }
+  FrequencyPoint point;
+  point.frequency = frequency;
+  point.judged = judge();
+  point.mean = tracker.mean_from(point.judged.discarded);
+  std::vector<double> energy;
+  for (const PeriodSummary& p : tracker.all()) energy.push_back(p.energy_in);
+  point.energy_in = batch_mean_interval(energy, point.judged.discarded, point.judged.batch_length);
+  if (!prescribed) learn_impedance(point.mean, omega);
+  point.periods = tracker.all();
+  for (PeriodSummary& p : point.periods) {  // the point keeps only what /periods reports
+    p.container.clear();
+    p.damper_force.clear();
+    p.damper_force_mean.clear();
+  }
+  return point;
+}
+
+void FrequencyRun::run_free_decay() {
+  const ExcitationSpec& x = deck_.excitation;
+  const double f1 = first_mode();
+  configure(f1, 0.0);
+  system_.set_initial_displacement(x.initial_displacement);
+  long long done = 0;
+  while (system_.time() < x.duration - 1e-12) {
+    step();
+    if (progress_ && ++done % 4096 == 0) progress_(f1, system_.time() / x.duration);
+  }
+}
+
+StateArrays FrequencyRun::save() const {
+  StateArrays out = system_.save();
+  const Drive& d = system_.drive();
+  out["run.tallies"] = {dissipated_n_, dissipated_t_, work_in_, next_sample_,
+                        d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0};
+  out["run.effective_mass"] = effective_mass_;
+  out["run.effective_damping"] = effective_damping_;
+  out["run.mean_force"] = mean_force_;
+  return out;
+}
+
+void FrequencyRun::restore(const StateArrays& state) {
+  system_.restore(state);
+  const auto& t = state.at("run.tallies");
+  dissipated_n_ = t.at(0);
+  dissipated_t_ = t.at(1);
+  work_in_ = t.at(2);
+  next_sample_ = t.at(3);
+  restored_angle_ = t.at(4);
+  restored_ = true;
+  effective_mass_ = state.at("run.effective_mass");
+  effective_damping_ = state.at("run.effective_damping");
+  mean_force_ = state.at("run.mean_force");
+}
+
+}  // namespace pdsim

@@ -1,0 +1,91 @@
+// One coupled system driven through frequencies: the bed settled first, each frequency started
+// on its predicted steady state (or carried on, or from the settled bed), run period by period
+// until its first harmonic is stationary and known to the tolerance, then summarised. The
+// drivers of src/run.cpp run one of these, or several side by side (independent frequencies,
+// realisations), and combine what they measure.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <string>
+
+#include "io/results.hpp"
+#include "src/harmonics.hpp"
+#include "src/steady_state.hpp"
+
+namespace pdsim {
+
+// What one run measured at one frequency.
+struct FrequencyPoint {
+  double frequency = 0;    // Hz
+  Stationary judged;       // the displacement harmonic (prescribed motion: the force harmonic)
+  PeriodSummary mean;      // means over the stationary periods
+  MeanInterval energy_in;  // J per period
+  std::vector<PeriodSummary> periods;  // every period run (dampers' harmonics left out)
+};
+
+struct BedReport {
+  bool ran = false, settled = false;
+  double time_s = 0;  // s of settling
+  double speed = 0;   // m/s, largest particle speed at the end
+};
+
+// Set from outside to stop every run at its next step (SIGINT, or a failed sibling run).
+extern std::atomic<bool> g_stop_runs;
+
+class FrequencyRun {
+ public:
+  // `progress(frequency, fraction of this frequency done)` is called after every period.
+  using Progress = std::function<void(double frequency, double fraction)>;
+  FrequencyRun(const Deck& deck, const Scene& scene, Progress progress = {});
+
+  // Lets the particles settle under gravity, containers at rest (deck.bed); time stands still.
+  BedReport settle_bed();
+
+  // Runs `frequency` (Hz) starting as `start` says; whole periods until converged or
+  // settle.max_periods (or the fixed number of periods of a `sine` or a prescribed duration).
+  FrequencyPoint run_frequency(double frequency, FrequencyStart start);
+  // A free decay: `duration` seconds of time history from the initial displacement.
+  void run_free_decay();
+
+  // Time series (and /energy when asked for) recorded so far.
+  const TimeSeries& timeseries() const { return timeseries_; }
+  const std::optional<EnergySeries>& energy() const { return energy_; }
+  void set_records(const TimeSeries& t, const std::optional<EnergySeries>& e) {
+    timeseries_ = t;
+    energy_ = e;
+  }
+  CoupledSystem& system() { return system_; }
+  const CoupledSystem& system() const { return system_; }
+
+  // Everything the next frequency depends on: the system, the drive's phase, the tallies and
+  // the damper model the prediction uses.
+  StateArrays save() const;
+  void restore(const StateArrays& state);
+
+ private:
+  double first_mode() const;
+  int configure(double frequency, double amplitude);
+  void step();
+  std::vector<std::complex<double>> impedance() const;  // the dampers' model at the drive's w
+  std::complex<double> predict_start();                 // returns the predicted response, m
+  void learn_impedance(const PeriodSummary& mean, double omega);
+
+  const Deck& deck_;
+  const Scene& scene_;
+  CoupledSystem system_;
+  Progress progress_;
+  TimeSeries timeseries_;
+  std::optional<EnergySeries> energy_;
+  double dt_ = 0, sample_every_ = 0, next_sample_ = 0, frequency_ = 0;
+  double dissipated_n_ = 0, dissipated_t_ = 0, work_in_ = 0;
+  // The drive's phase at a restored state (the restored system has no drive yet).
+  double restored_angle_ = 0;
+  bool restored_ = false;
+  // The dampers as the prediction sees them: an effective mass (kg) and viscous damping
+  // (N s/m) from the last frequency's measured impedance, and the mean force (N).
+  std::vector<double> effective_mass_, effective_damping_, mean_force_;
+  std::vector<double> bed_mass_, bed_weight_;  // the rigid bed, before anything is measured
+};
+
+}  // namespace pdsim

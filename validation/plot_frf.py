@@ -3,10 +3,22 @@
 
 Usage: validation/plot_frf.py OUT.h5 [OTHER.h5 ...] [--measured CSV] [-o frf.png]
 
-Plots the first-harmonic displacement amplitude (mm) against frequency (Hz) for each file,
-labelled by the /meta attribute `title` or else the file name; frequencies whose response did
-not converge (/frf/converged = 0) are drawn as open markers. Prints each file's peak amplitude
-and its frequency.
+Draws two stacked panels sharing the frequency axis (Hz): the first-harmonic displacement
+amplitude (mm, /frf/amplitude) and its phase against the input sin(angle) (rad, /frf/phase, as
+stored), one colour per file, labelled by the /meta attribute `title` (else the file name) and
+the /meta attribute `start` (predicted, carried or independent) when present.
+- Converged points (/frf/converged = 1) are filled markers with 95 % confidence error bars
+  (± /frf/amplitude_ci, ± /frf/phase_ci), joined by a line only between neighbouring converged
+  points: the line breaks wherever an unconverged point lies between them.
+- Unconverged points (/frf/converged = 0) are not results: hollow markers, no line, no error
+  bars, one legend entry "not converged (not a result)".
+Files written before the _ci columns existed (or with NaN CIs) get no error bars for those points.
+The output format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector).
+
+Prints for each file its peak amplitude over the converged points, with its confidence
+half-width, e.g. "peak amplitude 1.408 ± 0.012 mm at 15 Hz (converged points only)", or
+"no converged point". A file without /frf (e.g. a prescribed-motion result, /prescribed) is an
+error (exit status 1).
 
 --measured CSV: a digitised measured curve (e.g. Saeki 2002, fig. 5b), plain text, comma
 separated, first line exactly the header `frequency_hz,amplitude_m`, then one point per line
@@ -15,9 +27,10 @@ in SI units (Hz, m, amplitude > 0); lines starting with '#' are comments. Exampl
     # Saeki (2002) fig. 5b, 250 particles, digitised by hand
     12.0,0.00051
     15.2,0.00230
-For each file the script then prints the RMS relative difference
-sqrt(mean(((sim - meas) / meas)^2)), with the simulated amplitude interpolated linearly at the
-measured frequencies; measured points outside a file's frequency range are left out and counted.
+It is drawn on the amplitude panel. For each file the script then prints the RMS relative
+difference sqrt(mean(((sim - meas) / meas)^2)), with the simulated amplitude interpolated
+linearly at the measured frequencies between the file's converged points only; measured points
+outside the frequency range of the converged points are left out and counted.
 """
 import argparse
 import os
@@ -27,30 +40,61 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 import numpy as np  # noqa: E402
 import h5py  # noqa: E402
 
 HEADER = "frequency_hz,amplitude_m"
+FORMATS = (".png", ".pdf", ".svg")
+NOT_CONVERGED = "not converged (not a result)"
+
+
+def text(value):
+    """An HDF5 string attribute as str (h5py gives bytes for fixed-length strings)."""
+    return value.decode("utf-8", "replace") if isinstance(value, bytes) else value
 
 
 def read_frf(path):
-    """Returns (label, frequency_hz, amplitude_m, converged) sorted by frequency."""
+    """Returns a dict of the /frf columns sorted by frequency, with label; absent CIs are None."""
     try:
         with h5py.File(path, "r") as h5:
-            if "frf/frequency" not in h5 or "frf/amplitude" not in h5:
+            if "frf" not in h5:
+                held = ", ".join("/" + name for name in h5) or "nothing"
+                kind = " (a prescribed-motion result?)" if "prescribed" in h5 else ""
+                sys.exit(f"plot_frf.py: {path} has no /frf (stepped-sine FRF) group; "
+                         f"it holds {held}{kind}")
+            frf = h5["frf"]
+            if "frequency" not in frf or "amplitude" not in frf:
                 sys.exit(f"plot_frf.py: {path} has no /frf/frequency and /frf/amplitude")
-            frequency = h5["frf/frequency"][()]
-            amplitude = h5["frf/amplitude"][()]
-            converged = h5["frf/converged"][()] if "frf/converged" in h5 else np.ones(
-                frequency.shape, dtype=int)
-            title = h5["meta"].attrs.get("title") if "meta" in h5 else None
+            n = frf["frequency"].shape[0]
+
+            def column(name):
+                # Older writers lack some columns, and an empty one is as good as missing.
+                if name not in frf or frf[name].shape[0] != n:
+                    return None
+                units = text(frf[name].attrs.get("units"))
+                expected = {"frequency": "Hz", "amplitude": "m", "amplitude_ci": "m",
+                            "phase": "rad", "phase_ci": "rad"}.get(name)
+                if units is not None and expected is not None and units != expected:
+                    sys.exit(f"plot_frf.py: {path}: /frf/{name} is in '{units}', "
+                             f"expected '{expected}'")
+                return frf[name][()]
+
+            data = {name: column(name) for name in
+                    ("frequency", "amplitude", "amplitude_ci", "phase", "phase_ci", "converged")}
+            meta = h5["meta"].attrs if "meta" in h5 else {}
+            title, start = text(meta.get("title")), text(meta.get("start"))
     except OSError as error:
         sys.exit(f"plot_frf.py: cannot read {path}: {error}")
-    if isinstance(title, bytes):
-        title = title.decode("utf-8", "replace")
-    order = np.argsort(frequency)
-    return (title or os.path.basename(path), frequency[order], amplitude[order],
-            converged[order].astype(bool))
+    if data["phase"] is None:
+        data["phase"] = np.full(n, np.nan)
+    if data["converged"] is None:  # files from before the column: every point counted
+        data["converged"] = np.ones(n, dtype=int)
+    order = np.argsort(data["frequency"])
+    data = {name: None if values is None else values[order] for name, values in data.items()}
+    data["converged"] = data["converged"].astype(bool)
+    data["label"] = (title or os.path.basename(path)) + (f" (start: {start})" if start else "")
+    return data
 
 
 def read_measured(path):
@@ -88,37 +132,85 @@ def rms_relative_difference(frequency, amplitude, measured_frequency, measured_a
     return float(np.sqrt(np.mean(relative**2))), int(inside.sum()), int((~inside).sum())
 
 
+def plot_panel(axes, frequency, values, ci, converged, color, label):
+    """Draws one file on one panel: converged points joined and with error bars, others hollow."""
+    # NaN at the unconverged points makes matplotlib break the line there, so no segment
+    # ever passes through (or bridges over) a point that is not a result.
+    joined = np.where(converged, values, np.nan)
+    axes.plot(frequency, joined, "o-", ms=4, color=color, label=label)
+    if ci is not None:
+        axes.errorbar(frequency[converged], values[converged], yerr=ci[converged], fmt="none",
+                      ecolor=color, elinewidth=1, capsize=2)
+    axes.plot(frequency[~converged], values[~converged], "o", ms=4, mfc="none", color=color)
+
+
+def print_peak(path, data):
+    """Prints the peak amplitude over the converged points, with its CI when the file has one."""
+    converged = data["converged"]
+    if not converged.any():
+        print(f"{path}: peak amplitude: no converged point "
+              f"(0 of {converged.size} frequencies converged)")
+        return
+    indices = np.flatnonzero(converged)
+    peak = indices[np.argmax(data["amplitude"][indices])]
+    ci = data["amplitude_ci"]
+    spread = (f" ± {ci[peak] * 1e3:.2g}" if ci is not None and np.isfinite(ci[peak])
+              else " (no CI)")
+    print(f"{path}: peak amplitude {data['amplitude'][peak] * 1e3:.4g}{spread} mm at "
+          f"{data['frequency'][peak]:.4g} Hz (converged points only)")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("files", nargs="+", help="pdsim HDF5 outputs with an /frf group")
     parser.add_argument("--measured", help=f"digitised measured curve, CSV with header {HEADER}")
-    parser.add_argument("-o", "--output", default="frf.png", help="image to write")
+    parser.add_argument("-o", "--output", default="frf.png",
+                        help="image to write; .png (200 dpi), .pdf or .svg")
     args = parser.parse_args()
+    extension = os.path.splitext(args.output)[1].lower()
+    if extension not in FORMATS:
+        sys.exit(f"plot_frf.py: {args.output}: the output must end in {', '.join(FORMATS)}")
 
     measured = read_measured(args.measured) if args.measured else None
-    figure, axes = plt.subplots(figsize=(7, 4.5))
-    for path in args.files:
-        label, frequency, amplitude, converged = read_frf(path)
-        line, = axes.plot(frequency, amplitude * 1e3, "-", label=label)
-        color = line.get_color()
-        axes.plot(frequency[converged], amplitude[converged] * 1e3, "o", ms=4, color=color)
-        axes.plot(frequency[~converged], amplitude[~converged] * 1e3, "o", ms=4, mfc="none",
-                  color=color)
-        peak = int(np.argmax(amplitude))
-        print(f"{path}: peak amplitude {amplitude[peak] * 1e3:.4g} mm at {frequency[peak]:.4g} Hz")
+    figure, (amplitude_axes, phase_axes) = plt.subplots(2, 1, sharex=True, figsize=(7, 6.5))
+    any_unconverged = False
+    for index, path in enumerate(args.files):
+        data = read_frf(path)
+        frequency, converged = data["frequency"], data["converged"]
+        color = f"C{index % 10}"
+        ci = data["amplitude_ci"]
+        plot_panel(amplitude_axes, frequency, data["amplitude"] * 1e3,
+                   None if ci is None else ci * 1e3, converged, color, data["label"])
+        plot_panel(phase_axes, frequency, data["phase"], data["phase_ci"], converged, color, None)
+        any_unconverged |= bool((~converged).any())
+        print_peak(path, data)
         if measured is not None:
-            rms, used, outside = rms_relative_difference(frequency, amplitude, *measured)
+            if not converged.any():
+                print(f"{path}: RMS relative difference to {args.measured}: no converged point "
+                      f"to compare")
+                continue
+            kept = frequency[converged]
+            rms, used, outside = rms_relative_difference(kept, data["amplitude"][converged],
+                                                         *measured)
             print(f"{path}: RMS relative difference to {args.measured}: {rms:.4g} "
-                  f"({used} measured points, {outside} outside {frequency[0]:.4g}-"
-                  f"{frequency[-1]:.4g} Hz left out)")
+                  f"({used} measured points, {outside} outside {kept[0]:.4g}-"
+                  f"{kept[-1]:.4g} Hz left out; converged points only)")
     if measured is not None:
-        axes.plot(measured[0], measured[1] * 1e3, "ks--", mfc="none", label="measured")
-    axes.set_xlabel("frequency (Hz)")
-    axes.set_ylabel("displacement amplitude (mm)")
-    axes.grid(True, alpha=0.3)
-    axes.legend()
+        amplitude_axes.plot(measured[0], measured[1] * 1e3, "ks--", mfc="none", label="measured")
+    handles, labels = amplitude_axes.get_legend_handles_labels()
+    if any_unconverged:
+        # One grey entry for all files: the hollow marker means the same whatever the colour.
+        handles.append(Line2D([], [], ls="none", marker="o", ms=4, mfc="none", color="0.4"))
+        labels.append(NOT_CONVERGED)
+    amplitude_axes.legend(handles, labels, fontsize="small")
+    amplitude_axes.set_ylabel("displacement amplitude (mm)")
+    phase_axes.set_ylabel("phase (rad)")
+    phase_axes.set_xlabel("frequency (Hz)")
+    for axes in (amplitude_axes, phase_axes):
+        axes.grid(True, alpha=0.3)
+    amplitude_axes.set_title("first harmonic; error bars: 95 % confidence", fontsize="small")
     figure.tight_layout()
-    figure.savefig(args.output, dpi=150)
+    figure.savefig(args.output, dpi=200)
     print(f"wrote {args.output}")
 
 

@@ -135,6 +135,7 @@ MeanInterval batch_mean_interval(const std::vector<double>& series, int first, i
   out.mean = mean_of(retained);
   const std::vector<double> means = batch_means(series, first, std::max(1, batch_length));
   const int b = static_cast<int>(means.size());
+  if (retained.size() < 2) return {out.mean, kInfinity};
   const double sd = b >= 2 ? sample_sd(means) : sample_sd(retained);
   out.half_width = sd == 0 ? 0 : b >= 2 ? student_t975(b - 1) * sd / std::sqrt(b) : kInfinity;
   return out;
@@ -228,7 +229,7 @@ Stationary summarise(const std::vector<std::complex<double>>& series,
   const std::vector<double> a = batch_means(amplitude, best, s.batch_length);
   const std::vector<double> p = batch_means(across, best, s.batch_length);
   s.batches = static_cast<int>(a.size());
-  s.correlated = s.batch_length > 1 && s.batches < criteria.min_batches;
+  s.correlated = 2 * tau > shortest && s.batches < criteria.min_batches;
   if (s.batches >= 2) {
     const double t = student_t975(s.batches - 1), root = std::sqrt(double(s.batches));
     s.amplitude_ci = t * sample_sd(a) / root;
@@ -236,20 +237,6 @@ Stationary summarise(const std::vector<std::complex<double>>& series,
     s.phase_ci = size > 0 ? spread / size : (spread == 0 ? 0 : kPi);
   } else {
     s.amplitude_ci = s.phase_ci = kInfinity;
-  }
-  // Periods that never leave a narrow band bound their mean by the band, however long they
-  // remember: a response that creeps by a fraction of the tolerance needs no batches (but at
-  // least min_periods of them).
-  double band_a = 0, band_p = 0;
-  for (int k = best; k < n; ++k) {
-    band_a = std::max(band_a, std::fabs(amplitude[static_cast<std::size_t>(k)] - size));
-    band_p = std::max(band_p, std::fabs(across[static_cast<std::size_t>(k)]));
-  }
-  s.within_band = retained >= criteria.min_periods &&
-                  std::max(band_a, band_p) <= 0.5 * criteria.tolerance * size;
-  if (s.within_band) {
-    s.amplitude_ci = std::min(s.amplitude_ci, band_a);
-    s.phase_ci = std::min(s.phase_ci, size > 0 ? band_p / size : 0.0);
   }
   // A drift matters when it is significant and moves the mean by half the tolerance across the
   // retained periods.
@@ -280,7 +267,7 @@ Stationary analyse_periods(const std::vector<std::complex<double>>& series,
     s.reason = "fewer than min_periods (" + std::to_string(criteria.min_periods) + ") periods";
   } else if (s.trend) {
     s.reason = "drifting";
-  } else if (s.batches < criteria.min_batches && !s.within_band) {
+  } else if (s.batches < criteria.min_batches) {
     std::snprintf(text, sizeof text, "%.1f", s.tau);
     s.reason = s.correlated
                    ? std::string("periods too correlated (autocorrelation time ") + text +

@@ -28,9 +28,8 @@ struct Stationary {
   double tau = 1;             // their integrated autocorrelation time, periods
   std::complex<double> mean;  // over the retained periods
   double amplitude_ci = 0, phase_ci = 0;  // 95 % half-widths of |mean| (its unit) and arg (rad)
-  bool correlated = false;   // too few batches of the needed length: run longer (or realisations)
-  bool within_band = false;  // every retained period within tolerance / 2 of the mean
-  bool trend = false;        // the retained periods drift, significantly and by a relevant amount
+  bool correlated = false;  // too few batches of the needed length: run longer (or realisations)
+  bool trend = false;       // the retained periods drift, significantly and by a relevant amount
   bool converged = false;
   std::string reason;  // why not converged ("" when converged)
 };

@@ -24,8 +24,8 @@ void timeseries_columns(T& t, F&& f) {
     "the base for base input)");
   f("velocity", t.velocity, "m/s", "structure velocity at the response DOF");
   f("damper_force", t.damper_force, "N",
-    "force of the particles on the container(s) along the direction, mean over the coupling "
-    "interval that starts at the sample");
+    "force of the particles on the container(s) along the direction: the mean over the coupling "
+    "interval that starts at the sample (tight coupling: its value at the sample)");
   f("frequency", t.frequency, "Hz", "excitation frequency being run when the sample was taken");
 }
 
@@ -83,8 +83,8 @@ void prescribed_columns(T& t, F&& f) {
   f("periods", t.periods, "1", "periods run at this frequency");
   f("periods_discarded", t.periods_discarded, "1", "warm-up periods left out of the means");
   f("converged", t.converged, "1",
-    "1 when the force harmonic is stationary and known to "
-    "settle.tolerance (fixed durations: 1 when stationary)");
+    "1 when the force harmonic is stationary and known to settle.tolerance (fixed durations "
+    "too)");
   f("realisations", t.realisations, "1", "independent runs (fill seeds) behind the point");
 }
 

@@ -102,6 +102,12 @@ int CoupledSystem::particle_count() const {
 }
 
 void CoupledSystem::configure(double dt, const Drive& drive) {
+  // The containers as the particles last saw them, under the old drive: a new base input's
+  // velocity is not one the particles had (start_on carries them from here).
+  kinematics_at_configure_.clear();
+  if (integrator_)
+    for (std::size_t k = 0; k < engines_.size(); ++k)
+      kinematics_at_configure_.push_back(container_now(k));
   dt_ = dt;
   drive_ = drive;
   if (structure_.size() > 0) {
@@ -191,6 +197,7 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
 }
 
 void CoupledSystem::advance() {
+  kinematics_at_configure_.clear();
   if (prescribed_)
     step_prescribed();
   else if (coupling_.scheme == CouplingScheme::tight && !engines_.empty())
@@ -398,9 +405,13 @@ void CoupledSystem::start_on(const Eigen::VectorXcd& harmonic,
     constant +=
         mean_force[k] * structure_.attachment_translation.row(static_cast<int>(k)).transpose();
   const std::complex<double> turn = std::exp(i * drive_.angle(time_));
-  std::vector<ContainerKinematics> before;
-  for (std::size_t k = 0; k < engines_.size(); ++k) before.push_back(container_now(k));
+  std::vector<ContainerKinematics> before = kinematics_at_configure_;
+  if (before.size() != engines_.size()) {  // a step ran since configure(): the drive is current
+    before.clear();
+    for (std::size_t d = 0; d < engines_.size(); ++d) before.push_back(container_now(d));
+  }
   integrator_->q = static_response(structure_, constant) + (harmonic * turn).imag();
+  kinematics_at_configure_.clear();
   integrator_->v = (i * drive_.omega * harmonic * turn).imag();
   for (std::size_t k = 0; k < engines_.size(); ++k)
     carry_with_container(*engines_[k], before[k], container_now(k));

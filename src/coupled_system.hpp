@@ -123,6 +123,7 @@ class CoupledSystem {
   // Work buffers of the step loop, sized once.
   std::vector<double> force_, force_sum_, guess_, torque_, torque_sum_, pending_torque_;
   std::vector<double> displacement_, force_mean_;  // per damper, see damper_displacements()
+  std::vector<ContainerKinematics> kinematics_at_configure_;  // until the next step
   Eigen::VectorXd load_, damper_load_, q_start_, v_start_;
 };
 

@@ -121,6 +121,8 @@ std::vector<std::complex<double>> FrequencyRun::impedance() const {
 
 std::complex<double> FrequencyRun::predict_start() {
   const Eigen::VectorXcd harmonic = system_.predicted_harmonic(impedance());
+  // An undamped structure driven at its own frequency has no steady state: carry on instead.
+  if (!harmonic.allFinite()) return system_.response_of(Eigen::VectorXcd::Zero(harmonic.size()));
   system_.start_on(harmonic, mean_force_);
   return system_.response_of(harmonic);
 }

@@ -2,17 +2,17 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <functional>
-#include <sstream>
-
-#include <atomic>
 #include <map>
 #include <mutex>
+#include <sstream>
 #include <thread>
 
 #include "pdsim_version.hpp"
@@ -323,6 +323,22 @@ class Driver {
     for (std::size_t r = 0; r < scenes_.size(); ++r)
       if (StateArrays state = get_state(c, "task.r" + std::to_string(r) + "."); !state.empty())
         task_states_[r] = std::move(state);
+    if (independent()) {  // realisation 0's segments, by the frequency each sample was taken at
+      const TimeSeries& ts = partial.timeseries;
+      for (std::size_t j = 0; j < ts.frequency.size(); ++j) {
+        const auto at = std::find(frequencies_.begin(), frequencies_.end(), ts.frequency[j]);
+        if (at == frequencies_.end()) continue;
+        TimeSeries& segment = segments_[static_cast<std::size_t>(at - frequencies_.begin())];
+        std::vector<const std::vector<double>*> from;
+        timeseries_columns(ts, [&](const char*, const auto& column, const char*, const char*) {
+          from.push_back(&column);
+        });
+        std::size_t next = 0;
+        timeseries_columns(segment, [&](const char*, auto& column, const char*, const char*) {
+          column.push_back((*from[next++])[j]);
+        });
+      }
+    }
     const auto& totals = c.at("run.totals");
     particle_steps_ = static_cast<long long>(totals.at(0));
     simulated_ = totals.at(1);
@@ -353,12 +369,7 @@ class Driver {
     } else {
       run_tasks();
     }
-    if (!stopped_)
-      for (std::size_t i = 0; i < frequencies_.size(); ++i) {
-        std::vector<FrequencyPoint> runs;
-        for (const auto& per_frequency : points_) runs.push_back(*per_frequency[i]);
-        add_row(results_, runs, deck_);
-      }
+    if (!stopped_) add_rows(results_);
     wall_ = wall_before_ + std::chrono::duration<double>(Clock::now() - started_).count();
     provenance(results_);
     return results_;
@@ -372,6 +383,17 @@ class Driver {
     return "point.r" + std::to_string(r) + ".f" + std::to_string(i);
   }
   bool independent() const { return deck_.excitation.start == FrequencyStart::independent; }
+
+  // The /frf (or /prescribed) rows of every frequency all of whose runs have finished, in the
+  // order of the frequency list.
+  void add_rows(Results& out) const {
+    for (std::size_t i = 0; i < frequencies_.size(); ++i) {
+      std::vector<FrequencyPoint> runs;
+      for (const auto& per_frequency : points_)
+        if (per_frequency[i]) runs.push_back(*per_frequency[i]);
+      if (runs.size() == points_.size()) add_row(out, runs, deck_);
+    }
+  }
 
   // Adds what `run` did since `seen` (its particle steps and simulated time) to the totals.
   struct Seen {
@@ -412,6 +434,8 @@ class Driver {
     worker();
     for (auto& t : threads) t.join();
     if (failure) std::rethrow_exception(failure);
+    // A stop that came between tasks (SIGINT) leaves work undone without any task failing.
+    if (g_stop_runs && !stopped_) throw SimulationError("interrupted");
   }
 
   // Dumps the particles of a failed run beside the output and says where.
@@ -550,6 +574,7 @@ class Driver {
       for (const auto& p : per_frequency) remaining += !p;
     if (remaining == 0 || !checkpoint_) return;
     Results snapshot = results_;
+    add_rows(snapshot);  // the finished frequencies are readable (and plottable) in the .partial
     StateArrays& c = snapshot.checkpoint;
     std::vector<double> reports;
     for (std::size_t k = 0; k < scenes_.size(); ++k) {
@@ -669,7 +694,8 @@ class Driver {
   Progress* progress_ = nullptr;
   std::mutex mutex_;
   int stop_after_ = 0;
-  bool stopped_ = false, bed_from_file_ = false;
+  std::atomic<bool> stopped_{false};
+  bool bed_from_file_ = false;
   std::size_t finished_ = 0;
   long long particle_steps_ = 0;
   double simulated_ = 0, wall_ = 0, wall_before_ = 0;

@@ -114,6 +114,31 @@ TEST_CASE("a stepped sine stopped after one frequency and resumed gives the same
   CHECK(a.meta_numbers.at("particle_steps") == b.meta_numbers.at("particle_steps"));
 }
 
+TEST_CASE("independent frequencies stopped and resumed keep every point and time series") {
+  Sandbox box;
+  const fs::path path = box.dir / "independent.toml";
+  std::ifstream tiny(deck("tiny_stepped_sine.toml"));
+  std::stringstream text;
+  text << tiny.rdbuf();
+  std::string deck_text = text.str();
+  deck_text.replace(deck_text.find("frequencies = [15.0, 16.0]"), 26,
+                    "frequencies = [15.0, 16.0, 17.0]\nstart = \"independent\"");
+  std::ofstream(path) << deck_text;
+  REQUIRE(box.pdsim("run --quiet --jobs 1 -o whole.h5 independent.toml") == 0);
+  REQUIRE(box.pdsim("run --quiet --jobs 1 -o split.h5 --stop-after 1 independent.toml") == 0);
+  // The finished frequency is readable in the checkpoint file.
+  CHECK(pdsim::read_results((box.dir / "split.h5.partial").string()).frf.frequency.size() == 1);
+  REQUIRE(box.pdsim("run --quiet --jobs 2 -o split.h5 --resume independent.toml") == 0);
+  const pdsim::Results a = pdsim::read_results((box.dir / "whole.h5").string());
+  const pdsim::Results b = pdsim::read_results((box.dir / "split.h5").string());
+  CHECK(a.meta_text.at("start") == "independent");
+  CHECK(a.frf.frequency == std::vector<double>{15.0, 16.0, 17.0});
+  CHECK(a.frf.amplitude == b.frf.amplitude);
+  CHECK(a.timeseries.time == b.timeseries.time);
+  CHECK(a.timeseries.frequency == b.timeseries.frequency);
+  CHECK(a.timeseries.displacement == b.timeseries.displacement);
+}
+
 TEST_CASE("check passes on every example deck") {
   Sandbox box;
   for (const auto& entry : fs::directory_iterator(std::string(PDSIM_TEST_DIR) + "/../examples")) {

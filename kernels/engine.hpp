@@ -55,6 +55,18 @@ inline ParticleStepArgs scene_step_args(const EngineConfig& c) {
 }
 using StateArrays = std::map<std::string, std::vector<double>>;
 
+// One state among others in a checkpoint: its arrays under a prefix ("damper0.", "bed.r1."), and
+// back.
+inline void put_state(StateArrays& out, const std::string& prefix, const StateArrays& state) {
+  for (const auto& [name, values] : state) out[prefix + name] = values;
+}
+inline StateArrays get_state(const StateArrays& in, const std::string& prefix) {
+  StateArrays out;
+  for (auto it = in.lower_bound(prefix); it != in.end() && it->first.rfind(prefix, 0) == 0; ++it)
+    out[it->first.substr(prefix.size())] = it->second;
+  return out;
+}
+
 // Contact history as a checkpoint stores it: `slots` slots of 3 values per particle, only those
 // whose bit is set in the particle's mask. The others hold stale values that are never read and
 // would make two equal states save differently. Scenes without history have none (empty).

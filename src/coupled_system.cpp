@@ -208,27 +208,24 @@ void CoupledSystem::advance() {
 
 void CoupledSystem::step_prescribed() {
   const MotionSpec& m = *prescribed_;
-  const double u = m.amplitude * std::sin(drive_.angle(time_));
-  const double u_dot = m.amplitude * drive_.omega * std::cos(drive_.angle(time_));
+  const ContainerKinematics kin = container_now(0);  // every container moves alike
+  const double u = dot(kin.position, m.axis);
   last_ = StepRecord{};
   last_.time = time_;
   last_.displacement = u;
-  last_.velocity = u_dot;
-  for (auto& e : engines_) {
-    const ContainerKinematics kin = translating(u * m.axis, u_dot * m.axis);
-    const StepTotals& totals = e->compute(kin, dt_);
-    if (totals.flags)
-      check(totals, static_cast<std::size_t>(&e - engines_.data()), time_, kin.position);
-    e->accept();
-    const std::size_t k = static_cast<std::size_t>(&e - engines_.data());
+  last_.velocity = dot(kin.velocity, m.axis);
+  for (std::size_t k = 0; k < engines_.size(); ++k) {
+    const StepTotals& totals = engines_[k]->compute(kin, dt_);
+    if (totals.flags) check(totals, k, time_, kin.position);
+    engines_[k]->accept();
     displacement_[k] = u;
     force_mean_[k] = dot(totals.wall_force, m.axis);
-    last_.damper_force += dot(totals.wall_force, m.axis);
+    last_.damper_force += force_mean_[k];
     last_.power_in -= dot(totals.wall_force, kin.velocity);
     last_.dissipated_normal += totals.dissipated_normal;
     last_.dissipated_tangential += totals.dissipated_tangential;
     last_.particle_kinetic += totals.kinetic;
-    particle_steps_ += e->count();
+    particle_steps_ += engines_[k]->count();
   }
   time_ += dt_;
 }
@@ -465,8 +462,7 @@ void CoupledSystem::dump(const std::string& path) const {
 StateArrays CoupledSystem::save() const {
   StateArrays out;
   for (std::size_t k = 0; k < engines_.size(); ++k)
-    for (auto& [name, values] : engines_[k]->save())
-      out["damper" + std::to_string(k) + "." + name] = values;
+    put_state(out, "damper" + std::to_string(k) + ".", engines_[k]->save());
   if (integrator_) {
     out["structure.q"].assign(integrator_->q.data(), integrator_->q.data() + integrator_->q.size());
     out["structure.v"].assign(integrator_->v.data(), integrator_->v.data() + integrator_->v.size());
@@ -477,13 +473,8 @@ StateArrays CoupledSystem::save() const {
 }
 
 void CoupledSystem::restore(const StateArrays& state) {
-  for (std::size_t k = 0; k < engines_.size(); ++k) {
-    const std::string prefix = "damper" + std::to_string(k) + ".";
-    StateArrays mine;
-    for (const auto& [name, values] : state)
-      if (name.rfind(prefix, 0) == 0) mine[name.substr(prefix.size())] = values;
-    engines_[k]->restore(mine);
-  }
+  for (std::size_t k = 0; k < engines_.size(); ++k)
+    engines_[k]->restore(get_state(state, "damper" + std::to_string(k) + "."));
   if (integrator_) {
     const auto& q = state.at("structure.q");
     const auto& v = state.at("structure.v");

@@ -20,16 +20,14 @@ FrequencyRun::FrequencyRun(const Deck& deck, const Scene& scene, Progress progre
   if (deck.output.energy) energy_.emplace();
   // Before anything is measured the bed moves with its container: a rigid mass carrying its
   // weight's component along the structure's direction.
+  const double along = deck.gravity && deck.structure.kind != StructureKind::none
+                           ? dot(*deck.gravity, deck.structure.direction)
+                           : 0.0;
   for (const DamperScene& d : scene.dampers) {
-    bed_mass_.push_back(d.particle_mass);
-    const double along = deck.gravity && deck.structure.kind != StructureKind::none
-                             ? dot(*deck.gravity, deck.structure.direction)
-                             : 0.0;
-    bed_weight_.push_back(d.particle_mass * along);
+    effective_mass_.push_back(d.particle_mass);
+    effective_damping_.push_back(0.0);
+    mean_force_.push_back(d.particle_mass * along);
   }
-  effective_mass_ = bed_mass_;
-  effective_damping_.assign(bed_mass_.size(), 0.0);
-  mean_force_ = bed_weight_;
 }
 
 double FrequencyRun::first_mode() const {
@@ -185,7 +183,8 @@ FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart star
     }
   }
   auto judge = [&] {
-    const auto all = prescribed ? tracker.force_series() : tracker.displacement_series();
+    const auto all =
+        tracker.series(prescribed ? &PeriodSummary::force : &PeriodSummary::displacement);
     const std::vector<std::complex<double>> series(all.begin() + settled_from, all.end());
     const int n = static_cast<int>(series.size());
     // With R realisations the point's interval is over their means, about sqrt(R) narrower

@@ -83,9 +83,9 @@ class FrequencyRun {
   double restored_angle_ = 0;
   bool restored_ = false;
   // The dampers as the prediction sees them: an effective mass (kg) and viscous damping
-  // (N s/m) from the last frequency's measured impedance, and the mean force (N).
+  // (N s/m) from the last frequency's measured impedance, and the mean force (N); before
+  // anything is measured, the bed as a rigid mass carrying its weight.
   std::vector<double> effective_mass_, effective_damping_, mean_force_;
-  std::vector<double> bed_mass_, bed_weight_;  // the rigid bed, before anything is measured
 };
 
 }  // namespace pdsim

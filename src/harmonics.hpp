@@ -60,14 +60,10 @@ class PeriodTracker {
   int periods() const { return static_cast<int>(periods_.size()); }
   const std::vector<PeriodSummary>& all() const { return periods_; }
 
-  std::vector<std::complex<double>> displacement_series() const {
+  // One harmonic of every period: series(&PeriodSummary::displacement), or ::force.
+  std::vector<std::complex<double>> series(std::complex<double> PeriodSummary::*harmonic) const {
     std::vector<std::complex<double>> out;
-    for (const PeriodSummary& p : periods_) out.push_back(p.displacement);
-    return out;
-  }
-  std::vector<std::complex<double>> force_series() const {
-    std::vector<std::complex<double>> out;
-    for (const PeriodSummary& p : periods_) out.push_back(p.force);
+    for (const PeriodSummary& p : periods_) out.push_back(p.*harmonic);
     return out;
   }
 

@@ -97,7 +97,6 @@ std::vector<double> pack(const FrequencyPoint& p) {
           double(j.batches),
           double(j.periods),
           j.lag1,
-          0.0,  // (a flag no longer written)
           double(j.trend),
           double(j.converged),
           p.mean.mean_square,
@@ -127,7 +126,7 @@ void unpack_periods(const std::vector<double>& v, FrequencyPoint& p) {
 }
 
 FrequencyPoint unpack(const std::vector<double>& v) {
-  if (v.size() != 19) throw SimulationError("checkpoint point of an unknown layout");
+  if (v.size() != 18) throw SimulationError("checkpoint point of an unknown layout");
   FrequencyPoint p;
   Stationary& j = p.judged;
   p.frequency = v[0];
@@ -139,14 +138,14 @@ FrequencyPoint unpack(const std::vector<double>& v) {
   j.batches = static_cast<int>(v[7]);
   j.periods = static_cast<int>(v[8]);
   j.lag1 = v[9];
-  j.trend = v[11] != 0;
-  j.converged = v[12] != 0;
+  j.trend = v[10] != 0;
+  j.converged = v[11] != 0;
   j.reason = j.converged ? "" : "not converged";
-  p.mean.mean_square = v[13];
-  p.mean.peak = v[14];
-  p.energy_in = {v[15], v[16]};
-  p.mean.dissipated_normal = v[17];
-  p.mean.dissipated_tangential = v[18];
+  p.mean.mean_square = v[12];
+  p.mean.peak = v[13];
+  p.energy_in = {v[14], v[15]};
+  p.mean.dissipated_normal = v[16];
+  p.mean.dissipated_tangential = v[17];
   return p;
 }
 
@@ -241,17 +240,6 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
   f.dissipated_energy_ci.push_back(energy.half_width);
   f.dissipated_normal.push_back(average(dn));
   f.dissipated_tangential.push_back(average(dt));
-}
-
-// The checkpoint arrays of one state under a prefix ("bed.r0.", "task.r1."), and back.
-void put_state(StateArrays& out, const std::string& prefix, const StateArrays& state) {
-  for (const auto& [name, values] : state) out[prefix + name] = values;
-}
-StateArrays get_state(const StateArrays& in, const std::string& prefix) {
-  StateArrays out;
-  for (auto it = in.lower_bound(prefix); it != in.end() && it->first.rfind(prefix, 0) == 0; ++it)
-    out[it->first.substr(prefix.size())] = it->second;
-  return out;
 }
 
 // Everything that decides a settled bed: a bed file made for other particles is refused.

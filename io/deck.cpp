@@ -557,6 +557,11 @@ SettleSpec read_settle(const Table& t) {
   }
   s.average_periods = static_cast<int>(
       settle->integer("average_periods", 1, kMaxPeriods).value_or(s.average_periods));
+  if (s.average_periods > 0 && s.average_periods < s.batches)
+    settle->fail("average_periods", "expected at least settle.batches (" +
+                                        std::to_string(s.batches) +
+                                        ") periods, one per batch of the interval, got " +
+                                        std::to_string(s.average_periods));
   s.realisations =
       static_cast<int>(settle->integer("realisations", 1, 1000).value_or(s.realisations));
   return s;

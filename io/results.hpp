@@ -29,9 +29,15 @@ void timeseries_columns(T& t, F&& f) {
   f("frequency", t.frequency, "Hz", "excitation frequency being run when the sample was taken");
 }
 
+// What the 95 % intervals of a /frf or /prescribed row are made of.
+inline constexpr const char* kIntervalKinds =
+    "kind of the 95 % intervals: 0 batch means over one run's stationary periods; 1 several "
+    "realisations that agree, their intervals pooled; 2 realisations that disagree (coexisting "
+    "regimes of the bed), the Student-t spread of their means";
+
 struct FrfTable {  // one row per stepped-sine frequency
   std::vector<double> frequency, amplitude, amplitude_ci, phase, phase_ci, rms, peak;
-  std::vector<int> periods, periods_discarded, converged, realisations;
+  std::vector<int> periods, periods_discarded, converged, realisations, interval;
   std::vector<double> dissipated_energy, dissipated_energy_ci, dissipated_normal,
       dissipated_tangential;
 };
@@ -41,9 +47,7 @@ void frf_columns(T& t, F&& f) {
   f("amplitude", t.amplitude, "m",
     "first-harmonic displacement amplitude, mean over the stationary periods (over the "
     "realisations' means when realisations > 1)");
-  f("amplitude_ci", t.amplitude_ci, "m",
-    "95 % half-width of amplitude: batch means over the stationary periods when realisations = "
-    "1, Student t over the realisations' means otherwise");
+  f("amplitude_ci", t.amplitude_ci, "m", "95 % half-width of amplitude (its kind: interval)");
   f("phase", t.phase, "rad",
     "phase of the first harmonic against the input sin(angle): x = amplitude sin(angle + phase)");
   f("phase_ci", t.phase_ci, "rad", "95 % half-width of phase (as amplitude_ci)");
@@ -55,6 +59,7 @@ void frf_columns(T& t, F&& f) {
   f("converged", t.converged, "1",
     "1 when the means are stationary and known to settle.tolerance, else 0 (not a result)");
   f("realisations", t.realisations, "1", "independent runs (fill seeds) behind the point");
+  f("interval", t.interval, "1", kIntervalKinds);
   f("dissipated_energy", t.dissipated_energy, "J",
     "energy the containers put into the particles per period (= dissipated in them when "
     "stationary)");
@@ -67,7 +72,7 @@ void frf_columns(T& t, F&& f) {
 struct PrescribedTable {  // one row per prescribed-motion frequency
   std::vector<double> frequency, dissipated_power, dissipated_power_ci, force_amplitude,
       force_amplitude_ci, force_phase, force_phase_ci;
-  std::vector<int> periods, periods_discarded, converged, realisations;
+  std::vector<int> periods, periods_discarded, converged, realisations, interval;
 };
 template <class T, class F>
 void prescribed_columns(T& t, F&& f) {
@@ -86,6 +91,7 @@ void prescribed_columns(T& t, F&& f) {
     "1 when the force harmonic is stationary and known to settle.tolerance (fixed durations "
     "too)");
   f("realisations", t.realisations, "1", "independent runs (fill seeds) behind the point");
+  f("interval", t.interval, "1", kIntervalKinds);
 }
 
 struct PeriodTable {  // one row per period run, per frequency and realisation

@@ -150,44 +150,49 @@ FrequencyPoint unpack(const std::vector<double>& v) {
 }
 
 // One row of /frf or /prescribed from the runs (realisations) of one frequency. With one run the
-// intervals are its batch-means intervals; with several, Student t over the runs' means, and the
-// point is converged when every run is stationary and the combined interval meets the tolerance.
+// intervals are its batch-means intervals; with several, combine_runs() pools them when the runs
+// agree and takes the spread of their means when they do not (interval kind 1 and 2). The point
+// is converged when every run is stationary and the combined interval meets the tolerance.
 void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& deck) {
   const SettleSpec& settle = deck.excitation.settle;
   const bool prescribed = deck.excitation.kind == ExcitationKind::prescribed;
   std::complex<double> mean = 0;
   int periods = 0, discarded = 0;
   bool stationary = true;
-  std::vector<double> energies, rms, dn, dt;
+  std::vector<double> rms, dn, dt;
   double peak = 0;
   for (const FrequencyPoint& p : runs) {
     mean += p.judged.mean / double(runs.size());
     periods = std::max(periods, p.judged.periods);
     discarded = std::max(discarded, p.judged.discarded);
     stationary = stationary && !p.judged.trend && p.judged.periods >= settle.min_periods;
-    energies.push_back(p.energy_in.mean);
     rms.push_back(std::sqrt(p.mean.mean_square));
     peak = std::max(peak, p.mean.peak);
     dn.push_back(p.mean.dissipated_normal);
     dt.push_back(p.mean.dissipated_tangential);
   }
   const double size = std::abs(mean);
-  double amplitude_ci = runs[0].judged.amplitude_ci, phase_ci = runs[0].judged.phase_ci;
-  MeanInterval energy = runs[0].energy_in;
-  bool converged = runs[0].judged.converged;
-  if (runs.size() > 1) {
-    const std::complex<double> along = size > 0 ? mean / size : 1.0;
-    std::vector<double> a, q;
-    for (const FrequencyPoint& p : runs) {
-      a.push_back((std::conj(along) * p.judged.mean).real());
-      q.push_back((std::conj(along) * p.judged.mean).imag());
-    }
-    amplitude_ci = independent_mean_interval(a).half_width;
-    phase_ci = size > 0 ? independent_mean_interval(q).half_width / size : kPi;
-    energy = independent_mean_interval(energies);
-    converged =
-        stationary && amplitude_ci <= settle.tolerance * size && phase_ci <= settle.tolerance;
+  // Each run's harmonic along the combined one (amplitude) and across it (phase x amplitude).
+  const std::complex<double> along = size > 0 ? mean / size : 1.0;
+  std::vector<RunMean> a, q, e;
+  for (const FrequencyPoint& p : runs) {
+    const std::complex<double> h = std::conj(along) * p.judged.mean;
+    const int dof = p.judged.batches - 1;
+    a.push_back({h.real(), p.judged.amplitude_ci, dof});
+    q.push_back({h.imag(), p.judged.phase_ci * std::abs(h), dof});
+    e.push_back({p.energy_in.mean, p.energy_in.half_width, dof});
   }
+  const double resolution = 0.1 * settle.tolerance * size;
+  const Combined amplitude = combine_runs(a, resolution), quadrature = combine_runs(q, resolution);
+  const MeanInterval energy = combine_runs(e, 0).interval;
+  const double amplitude_ci = amplitude.interval.half_width;
+  const double phase_ci = runs.size() == 1 ? runs[0].judged.phase_ci
+                          : size > 0       ? std::min(kPi, quadrature.interval.half_width / size)
+                                           : kPi;
+  const int interval = runs.size() == 1 ? 0 : amplitude.consistent && quadrature.consistent ? 1 : 2;
+  const bool converged = runs.size() == 1 ? runs[0].judged.converged
+                                          : stationary && amplitude_ci <= settle.tolerance * size &&
+                                                phase_ci <= settle.tolerance;
   auto average = [](const std::vector<double>& v) {
     double s = 0;
     for (double x : v) s += x;
@@ -222,6 +227,7 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
     p.periods_discarded.push_back(discarded);
     p.converged.push_back(converged ? 1 : 0);
     p.realisations.push_back(realisations);
+    p.interval.push_back(interval);
     return;
   }
   FrfTable& f = out.frf;
@@ -236,6 +242,7 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
   f.periods_discarded.push_back(discarded);
   f.converged.push_back(converged ? 1 : 0);
   f.realisations.push_back(realisations);
+  f.interval.push_back(interval);
   f.dissipated_energy.push_back(energy.mean);
   f.dissipated_energy_ci.push_back(energy.half_width);
   f.dissipated_normal.push_back(average(dn));
@@ -293,15 +300,12 @@ class Driver {
 
   void resume_from(const Results& partial) {
     const StateArrays& c = partial.checkpoint;
-    if (c.count("bed.reports") == 0)
-      throw InputError("the checkpoint was written by an older pdsim; run anew without --resume");
     results_.timeseries = partial.timeseries;
     results_.energy = partial.energy;
-    const auto& reports = c.at("bed.reports");
+    bed_from_file_ = c.count("bed.from_file") > 0;
     for (std::size_t r = 0; r < scenes_.size(); ++r) {
       beds_[r] = get_state(c, "bed.r" + std::to_string(r) + ".");
-      reports_[r] = {reports.at(4 * r) != 0, reports.at(4 * r + 1) != 0, reports.at(4 * r + 2),
-                     reports.at(4 * r + 3)};
+      reports_[r] = unpack_report(c, r);
       for (std::size_t i = 0; i < frequencies_.size(); ++i)
         if (const auto it = c.find(point_key(r, i)); it != c.end()) {
           points_[r][i] = unpack(it->second);
@@ -433,6 +437,25 @@ class Driver {
     throw SimulationError(std::string(e.what()) + "\nparticle states written to " + dump_path_);
   }
 
+  // Every realisation's settled bed and its report ("bed.reports": four numbers each), into a
+  // checkpoint or a bed file.
+  void put_beds(StateArrays& c) const {
+    std::vector<double> reports;
+    for (std::size_t r = 0; r < scenes_.size(); ++r) {
+      put_state(c, "bed.r" + std::to_string(r) + ".", beds_[r]);
+      reports.insert(reports.end(), {double(reports_[r].ran), double(reports_[r].settled),
+                                     reports_[r].time_s, reports_[r].speed});
+    }
+    c["bed.reports"] = reports;
+  }
+  static BedReport unpack_report(const StateArrays& c, std::size_t r) {
+    const auto it = c.find("bed.reports");
+    if (it == c.end() || it->second.size() < 4 * (r + 1))
+      throw InputError("the checkpoint or bed file was written by an older pdsim; delete it");
+    const std::vector<double>& v = it->second;
+    return {v[4 * r] != 0, v[4 * r + 1] != 0, v[4 * r + 2], v[4 * r + 3]};
+  }
+
   void settle_beds(Progress& progress) {
     std::vector<std::size_t> missing;
     for (std::size_t r = 0; r < scenes_.size(); ++r)
@@ -451,8 +474,7 @@ class Driver {
                 "contact, gravity, dt or realisations; delete it or name another file");
       for (std::size_t r : missing) {
         beds_[r] = get_state(saved.checkpoint, "bed.r" + std::to_string(r) + ".");
-        reports_[r] = {true, saved.meta_numbers["bed_settled"] != 0,
-                       saved.meta_numbers["bed_settle_time_s"], saved.meta_numbers["bed_speed"]};
+        reports_[r] = unpack_report(saved.checkpoint, r);
       }
       bed_from_file_ = true;
       return;
@@ -476,11 +498,7 @@ class Driver {
       saved.meta_text["bed_fingerprint"] = fingerprint;
       saved.meta_text["deck"] = deck_.text;
       saved.meta_numbers["realisations"] = double(scenes_.size());
-      saved.meta_numbers["bed_settled"] = reports_[0].settled;
-      saved.meta_numbers["bed_settle_time_s"] = reports_[0].time_s;
-      saved.meta_numbers["bed_speed"] = reports_[0].speed;
-      for (std::size_t r = 0; r < scenes_.size(); ++r)
-        put_state(saved.checkpoint, "bed.r" + std::to_string(r) + ".", beds_[r]);
+      put_beds(saved.checkpoint);
       write_results(file, saved, true);
     }
   }
@@ -564,18 +582,14 @@ class Driver {
     Results snapshot = results_;
     add_rows(snapshot);  // the finished frequencies are readable (and plottable) in the .partial
     StateArrays& c = snapshot.checkpoint;
-    std::vector<double> reports;
-    for (std::size_t k = 0; k < scenes_.size(); ++k) {
-      put_state(c, "bed.r" + std::to_string(k) + ".", beds_[k]);
-      reports.insert(reports.end(), {double(reports_[k].ran), double(reports_[k].settled),
-                                     reports_[k].time_s, reports_[k].speed});
+    put_beds(c);
+    if (bed_from_file_) c["bed.from_file"] = {1};
+    for (std::size_t k = 0; k < scenes_.size(); ++k)
       for (std::size_t f = 0; f < frequencies_.size(); ++f)
         if (points_[k][f]) {
           c[point_key(k, f)] = pack(*points_[k][f]);
           c[point_key(k, f) + ".periods"] = pack_periods(*points_[k][f]);
         }
-    }
-    c["bed.reports"] = reports;
     if (!independent()) {
       task_states_[r] = run.save();
       for (const auto& [k, state] : task_states_)
@@ -693,10 +707,11 @@ class Driver {
 };
 
 // The frequencies (Hz) whose points did not converge, as a list for the terminal.
-std::string unconverged(const std::vector<double>& frequency, const std::vector<int>& converged) {
+// The frequencies whose flag is `value`, comma-separated.
+std::string listed(const std::vector<double>& frequency, const std::vector<int>& flag, int value) {
   std::string list;
   for (std::size_t i = 0; i < frequency.size(); ++i)
-    if (!converged[i]) list += (list.empty() ? "" : ", ") + number(frequency[i]);
+    if (flag[i] == value) list += (list.empty() ? "" : ", ") + number(frequency[i]);
   return list;
 }
 
@@ -713,8 +728,9 @@ std::string summary_line(const Results& r, const std::string& path, const Deck& 
   std::ostringstream s;
   s.precision(4);
   auto tally = [&](const std::vector<double>& frequency, const std::vector<int>& converged,
-                   const std::vector<double>& value, const std::vector<double>& ci, double scale,
-                   const char* what, const char* unit) {
+                   const std::vector<int>& interval, const std::vector<double>& value,
+                   const std::vector<double>& ci, double scale, const char* what,
+                   const char* unit) {
     int count = 0;
     for (int c : converged) count += c;
     s << frequency.size() << " frequencies, " << count << " converged";
@@ -724,22 +740,26 @@ std::string summary_line(const Results& r, const std::string& path, const Deck& 
         << scale * ci[std::size_t(k)] << " " << unit << " at " << frequency[std::size_t(k)]
         << " Hz (of the converged points)";
     if (count < static_cast<int>(frequency.size()))
-      s << "; NOT converged at " << unconverged(frequency, converged)
+      s << "; NOT converged at " << listed(frequency, converged, 0)
         << " Hz: not results (give them more settle.max_periods, a looser settle.tolerance or "
-           "settle.realisations > 1)";
+           "more settle.realisations)";
+    const std::string disagree = listed(frequency, interval, 2);
+    if (!disagree.empty())
+      s << "; the realisations disagree at " << disagree
+        << " Hz (coexisting regimes of the bed: the interval is the spread of their means)";
   };
   if (!r.frf.frequency.empty() && deck.excitation.kind == ExcitationKind::stepped_sine) {
     s << "FRF: ";
-    tally(r.frf.frequency, r.frf.converged, r.frf.amplitude, r.frf.amplitude_ci, 1e3, "amplitude",
-          "mm");
+    tally(r.frf.frequency, r.frf.converged, r.frf.interval, r.frf.amplitude, r.frf.amplitude_ci,
+          1e3, "amplitude", "mm");
   } else if (!r.frf.frequency.empty()) {
     s << "sine at " << r.frf.frequency[0] << " Hz: first harmonic " << 1e3 * r.frf.amplitude[0]
       << " +- " << 1e3 * r.frf.amplitude_ci[0] << " mm"
       << (r.frf.converged[0] ? "" : " (not stationary over the duration)");
   } else if (!r.prescribed.frequency.empty()) {
     s << "prescribed motion: ";
-    tally(r.prescribed.frequency, r.prescribed.converged, r.prescribed.dissipated_power,
-          r.prescribed.dissipated_power_ci, 1.0, "power", "W");
+    tally(r.prescribed.frequency, r.prescribed.converged, r.prescribed.interval,
+          r.prescribed.dissipated_power, r.prescribed.dissipated_power_ci, 1.0, "power", "W");
   } else {
     s << "time history: " << r.timeseries.time.size() << " samples";
   }

@@ -148,6 +148,44 @@ MeanInterval independent_mean_interval(const std::vector<double>& values) {
   return {mean_of(values), student_t975(r - 1) * sample_sd(values) / std::sqrt(r)};
 }
 
+Combined combine_runs(const std::vector<RunMean>& runs, double resolution) {
+  const int r = static_cast<int>(runs.size());
+  if (r == 1) return {{runs[0].mean, runs[0].half_width}, true};
+  // Standard errors with the resolution as a floor, and the precision-weighted mean for Q.
+  std::vector<double> means, variances;
+  double weights = 0, weighted = 0, pooled = 0;
+  int dof = 0;
+  for (const RunMean& run : runs) {
+    const double se = run.half_width == 0 ? 0
+                      : run.dof < 1 || !std::isfinite(run.half_width)
+                          ? kInfinity
+                          : run.half_width / student_t975(run.dof);
+    const double floor = resolution / 1.959963984540054;
+    means.push_back(run.mean);
+    variances.push_back(se * se + floor * floor);
+    pooled += se * se;
+    dof += run.dof;
+  }
+  for (int k = 0; k < r; ++k) {
+    const double w = variances[std::size_t(k)] > 0 ? 1 / variances[std::size_t(k)] : kInfinity;
+    weights += w;
+    weighted += w * means[std::size_t(k)];
+  }
+  const double centre = std::isfinite(weights) ? weighted / weights : mean_of(means);
+  double q = 0;
+  for (int k = 0; k < r; ++k) {
+    const double d = means[std::size_t(k)] - centre;
+    q += d == 0 ? 0 : d * d / variances[std::size_t(k)];
+  }
+  // 99 % chi-square quantile by Wilson and Hilferty (within 1 % from one degree of freedom).
+  const double k = r - 1, z = 2.3263478740408408;
+  const double a = 2 / (9 * k), chi2 = k * std::pow(1 - a + z * std::sqrt(a), 3);
+  const MeanInterval spread = independent_mean_interval(means);
+  const double pooled_width = student_t975(dof) * std::sqrt(pooled) / r;
+  if (q <= chi2) return {{spread.mean, pooled_width}, true};
+  return {{spread.mean, std::max(spread.half_width, pooled_width)}, false};
+}
+
 namespace {
 
 // Everything but the verdict: warm-up, mean, autocorrelation, intervals, drift.

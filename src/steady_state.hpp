@@ -51,6 +51,23 @@ MeanInterval batch_mean_interval(const std::vector<double>& series, int first, i
 // Mean of independent values with the 95 % Student-t half-width (realisations of a point).
 MeanInterval independent_mean_interval(const std::vector<double>& values);
 
+// One run's mean with its 95 % half-width from batch means of `dof` + 1 batches.
+struct RunMean {
+  double mean = 0, half_width = 0;
+  int dof = 0;
+};
+// The mean of several independent runs (realisations) of one point. When their means agree
+// within their own intervals (Cochran's Q below its 99 % chi-square quantile; differences below
+// `resolution` never count), the runs sample one stationary state and their intervals pool: the
+// average with sqrt(sum se^2) / R. When they disagree (coexisting regimes of the bed, each run
+// locked in one), no single run's interval means anything and the interval is the spread of the
+// runs' means (Student t, R - 1 degrees of freedom).
+struct Combined {
+  MeanInterval interval;
+  bool consistent = true;
+};
+Combined combine_runs(const std::vector<RunMean>& runs, double resolution);
+
 // Two-sided 95 % and 99 % quantiles of Student's t with `dof` degrees of freedom (infinity for
 // dof < 1).
 double student_t975(int dof);

@@ -12,6 +12,9 @@ the /meta attribute `start` (predicted, carried or independent) when present.
   points: the line breaks wherever an unconverged point lies between them.
 - Unconverged points (/frf/converged = 0) are not results: hollow markers, no line, no error
   bars, one legend entry "not converged (not a result)".
+- Where several realisations disagree (/frf/interval = 2: coexisting regimes of the bed, the
+  interval is the spread of their means), each realisation's own mean (over its stationary
+  periods in /periods) is drawn as a small cross at that frequency, to show the regimes.
 Files written before the _ci columns existed (or with NaN CIs) get no error bars for those points.
 The output format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector).
 
@@ -47,6 +50,7 @@ import h5py  # noqa: E402
 HEADER = "frequency_hz,amplitude_m"
 FORMATS = (".png", ".pdf", ".svg")
 NOT_CONVERGED = "not converged (not a result)"
+DISAGREE = "one realisation's mean (where they disagree)"
 
 
 def text(value):
@@ -80,8 +84,9 @@ def read_frf(path):
                              f"expected '{expected}'")
                 return frf[name][()]
 
-            data = {name: column(name) for name in
-                    ("frequency", "amplitude", "amplitude_ci", "phase", "phase_ci", "converged")}
+            data = {name: column(name) for name in ("frequency", "amplitude", "amplitude_ci",
+                                                    "phase", "phase_ci", "converged", "interval")}
+            data["runs"] = realisation_means(h5, data["frequency"], data["interval"])
             meta = h5["meta"].attrs if "meta" in h5 else {}
             title, start = text(meta.get("title")), text(meta.get("start"))
     except OSError as error:
@@ -90,11 +95,31 @@ def read_frf(path):
         data["phase"] = np.full(n, np.nan)
     if data["converged"] is None:  # files from before the column: every point counted
         data["converged"] = np.ones(n, dtype=int)
+    runs = data.pop("runs")
     order = np.argsort(data["frequency"])
     data = {name: None if values is None else values[order] for name, values in data.items()}
+    data["runs"] = runs
     data["converged"] = data["converged"].astype(bool)
     data["label"] = (title or os.path.basename(path)) + (f" (start: {start})" if start else "")
     return data
+
+
+def realisation_means(h5, frequency, interval):
+    """Returns [(frequency, amplitude, phase)] of every realisation's stationary mean at the
+    frequencies whose realisations disagree (interval = 2), from /periods."""
+    if interval is None or "periods" not in h5 or not (interval == 2).any():
+        return []
+    p = {name: h5["periods"][name][()] for name in
+         ("frequency", "realisation", "stationary", "amplitude", "phase")}
+    harmonic = p["amplitude"] * np.exp(1j * p["phase"])
+    out = []
+    for f in frequency[interval == 2]:
+        for r in np.unique(p["realisation"][p["frequency"] == f]):
+            kept = (p["frequency"] == f) & (p["realisation"] == r) & (p["stationary"] == 1)
+            if kept.any():
+                mean = harmonic[kept].mean()
+                out.append((f, abs(mean), np.angle(mean)))
+    return out
 
 
 def read_measured(path):
@@ -173,7 +198,7 @@ def main():
 
     measured = read_measured(args.measured) if args.measured else None
     figure, (amplitude_axes, phase_axes) = plt.subplots(2, 1, sharex=True, figsize=(7, 6.5))
-    any_unconverged = False
+    any_unconverged = any_disagree = False
     for index, path in enumerate(args.files):
         data = read_frf(path)
         frequency, converged = data["frequency"], data["converged"]
@@ -183,6 +208,10 @@ def main():
                    None if ci is None else ci * 1e3, converged, color, data["label"])
         plot_panel(phase_axes, frequency, data["phase"], data["phase_ci"], converged, color, None)
         any_unconverged |= bool((~converged).any())
+        for f, amplitude, phase in data["runs"]:
+            amplitude_axes.plot(f, amplitude * 1e3, "x", ms=4, color=color)
+            phase_axes.plot(f, phase, "x", ms=4, color=color)
+        any_disagree = any_disagree or bool(data["runs"])
         print_peak(path, data)
         if measured is not None:
             if not converged.any():
@@ -202,6 +231,9 @@ def main():
         # One grey entry for all files: the hollow marker means the same whatever the colour.
         handles.append(Line2D([], [], ls="none", marker="o", ms=4, mfc="none", color="0.4"))
         labels.append(NOT_CONVERGED)
+    if any_disagree:
+        handles.append(Line2D([], [], ls="none", marker="x", ms=4, color="0.4"))
+        labels.append(DISAGREE)
     amplitude_axes.legend(handles, labels, fontsize="small")
     amplitude_axes.set_ylabel("displacement amplitude (mm)")
     phase_axes.set_ylabel("phase (rad)")

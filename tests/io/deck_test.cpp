@@ -112,7 +112,7 @@ TEST_CASE("a deck with every section keeps its values, integers read as reals") 
   CHECK(e.settle.min_periods == 5);
   CHECK(e.settle.max_periods == 50);
   CHECK(e.settle.tolerance == 1e-4);
-  CHECK(e.settle.average_periods == 3);
+  CHECK(e.settle.average_periods == 6);
   CHECK(e.settle.batches == 4);
   CHECK(e.settle.realisations == 1);
   CHECK(e.start == FrequencyStart::carried);
@@ -376,6 +376,9 @@ TEST_CASE("absurd counts: particles, elements, periods out of order") {
               "expected at least min_periods (10), got 5");
   check_error(stepped + "settle = { tolerance = 2 }\n",
               "9:24: 'excitation.settle.tolerance': ", "expected a number in (0, 1], got 2");
+  check_error(stepped + "settle = { average_periods = 3 }\n",
+              "9:30: 'excitation.settle.average_periods': ",
+              "expected at least settle.batches (4) periods, one per batch of the interval, got 3");
   check_error(stepped + "start = \"physical\"\n",
               "9:9: 'excitation.start': ", "one of \"predicted\", \"carried\", \"independent\"");
 }

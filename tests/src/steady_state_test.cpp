@@ -183,3 +183,42 @@ TEST_CASE("independent realisations: the Student-t interval of their mean") {
   CHECK(b.mean == 2.0);
   CHECK(b.half_width == 0);
 }
+
+TEST_CASE("realisations that agree pool their intervals, ones that disagree give their spread") {
+  std::mt19937_64 rng(42);
+  const SteadyStateCriteria criteria{2e-2, 10, 4};
+  auto run_mean = [&](const std::vector<std::complex<double>>& series) {
+    const Stationary s = analyse_periods(series, criteria);
+    return RunMean{std::abs(s.mean), s.amplitude_ci, s.batches - 1};
+  };
+  // Two runs of one stationary state: consistent (a 99 % test), and the pooled interval, about
+  // sqrt(2) narrower than one run's, covers the truth at about 95 %.
+  const int trials = 400;
+  int consistent = 0, covered = 0;
+  double narrower = 0;
+  for (int trial = 0; trial < trials; ++trial) {
+    const RunMean a = run_mean(ar1_series(200, 0.5, 0.02, rng));
+    const RunMean b = run_mean(ar1_series(200, 0.5, 0.02, rng));
+    const Combined c = combine_runs({a, b}, 0);
+    consistent += c.consistent;
+    covered += std::fabs(c.interval.mean - std::abs(kTruth)) <= c.interval.half_width;
+    if (c.consistent) narrower += c.interval.half_width / (0.5 * (a.half_width + b.half_width));
+  }
+  narrower /= consistent;
+  CHECK(consistent >= 380);
+  CHECK(covered >= 360);
+  CHECK(covered <= 395);
+  CHECK(narrower == doctest::Approx(1 / std::sqrt(2.0)).epsilon(0.1));
+  // Two regimes 30 % apart, each run locked in one with 1 % scatter: refused as one state, and
+  // the interval is the Student-t spread of the two means (t = 12.71 on one degree of freedom).
+  const RunMean low = run_mean(ar1_series(200, 0.5, 0.01, rng));
+  std::vector<std::complex<double>> high = ar1_series(200, 0.5, 0.01, rng);
+  for (auto& h : high) h *= 1.3;
+  const Combined c = combine_runs({low, run_mean(high)}, 0);
+  CHECK_FALSE(c.consistent);
+  CHECK(c.interval.half_width == doctest::Approx(12.706 * 0.15 * std::abs(kTruth)).epsilon(0.05));
+  // Deterministic runs that differ by less than the resolution are one state.
+  CHECK(combine_runs({{1.0, 0, 9}, {1.0001, 0, 9}}, 1e-3).consistent);
+  CHECK_FALSE(combine_runs({{1.0, 0, 9}, {1.01, 0, 9}}, 1e-3).consistent);
+  CHECK(combine_runs({{1.0, 0, 9}, {1.0, 0, 9}}, 0).interval.half_width == 0);
+}

@@ -525,8 +525,10 @@ std::vector<double> read_frequencies(const Table& t) {
   return f;
 }
 
+// settle.realisations is 0 when not given: read_deck() resolves it once the fill is known.
 SettleSpec read_settle(const Table& t) {
   SettleSpec s;
+  s.realisations = 0;
   const auto settle = t.sub("settle", "a table { min_periods, max_periods, tolerance }");
   if (!settle) return s;
   settle->allow_only(
@@ -932,10 +934,15 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
   if (const auto coupling = top.sub("coupling", table)) deck.coupling = read_coupling(*coupling);
   if (const auto solver = top.sub("solver", table)) deck.solver = read_solver(*solver);
   if (const auto output = top.sub("output", table)) deck.output = read_output(*output);
-  const ExcitationSpec& x = deck.excitation;
-  if (x.settle.realisations > 1 &&
-      std::all_of(deck.dampers.begin(), deck.dampers.end(),
-                  [](const DamperSpec& d) { return d.particles.fill == Fill::lattice; }))
+  ExcitationSpec& x = deck.excitation;
+  const bool random_fill =
+      std::any_of(deck.dampers.begin(), deck.dampers.end(),
+                  [](const DamperSpec& d) { return d.particles.fill == Fill::random; });
+  // A random fill's response is chaotic and near resonance may lock into one of several
+  // regimes for hundreds of periods: two realisations are the fewest that show it (README).
+  if (x.settle.realisations == 0)
+    x.settle.realisations = random_fill && !deck.output.energy ? 2 : 1;
+  if (x.settle.realisations > 1 && !random_fill)
     throw InputError(deck.where("excitation.settle.realisations"), "excitation.settle.realisations",
                      "expected 1: a lattice fill is the same for every seed, so realisations "
                      "need particles with fill = \"random\"");

@@ -509,11 +509,12 @@ class Driver {
       std::vector<std::size_t> frequencies;  // indices, in the order run
     };
     std::vector<Task> tasks;
-    for (std::size_t r = 0; r < scenes_.size(); ++r) {
-      if (independent()) {
-        for (std::size_t i = 0; i < frequencies_.size(); ++i)
+    if (independent()) {  // frequency by frequency, so that whole rows finish early
+      for (std::size_t i = 0; i < frequencies_.size(); ++i)
+        for (std::size_t r = 0; r < scenes_.size(); ++r)
           if (!points_[r][i]) tasks.push_back({r, {i}});
-      } else {
+    } else {
+      for (std::size_t r = 0; r < scenes_.size(); ++r) {
         Task t{r, {}};
         for (std::size_t i = 0; i < frequencies_.size(); ++i)
           if (!points_[r][i]) t.frequencies.push_back(i);

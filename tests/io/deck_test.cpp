@@ -383,7 +383,7 @@ TEST_CASE("absurd counts: particles, elements, periods out of order") {
               "9:9: 'excitation.start': ", "one of \"predicted\", \"carried\", \"independent\"");
 }
 
-TEST_CASE("realisations need a random fill, and the energy ledger one continuous run") {
+TEST_CASE("realisations: two by default for a random fill, need one, the energy ledger one run") {
   const std::string stepped =
       kSdof + kContact +
       "[[damper]]\ncontainer = { shape = \"box\", size = [0.05, 0.05, 0.05] }\n"
@@ -401,6 +401,12 @@ TEST_CASE("realisations need a random fill, and the energy ledger one continuous
   std::string random = stepped;
   random.replace(random.find("\"lattice\""), 9, "\"random\"");
   CHECK(parse_deck(random + again, "deck.toml").excitation.settle.realisations == 3);
+  // Not given: two for a random fill (the fewest that show coexisting regimes), one for a
+  // lattice, and one when the energy ledger asks for one continuous run.
+  CHECK(parse_deck(random, "deck.toml").excitation.settle.realisations == 2);
+  CHECK(one.excitation.settle.realisations == 1);
+  CHECK(parse_deck(random + "[output]\nenergy = true\n", "deck.toml")
+            .excitation.settle.realisations == 1);
   const std::string energy = error_of(random + again + "[output]\nenergy = true\n");
   CHECK(energy.find("'output.energy'") != std::string::npos);
   CHECK(energy.find("one continuous run") != std::string::npos);

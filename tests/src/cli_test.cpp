@@ -125,13 +125,15 @@ TEST_CASE("independent frequencies stopped and resumed keep every point and time
                     "frequencies = [15.0, 16.0, 17.0]\nstart = \"independent\"");
   std::ofstream(path) << deck_text;
   REQUIRE(box.pdsim("run --quiet --jobs 1 -o whole.h5 independent.toml") == 0);
-  REQUIRE(box.pdsim("run --quiet --jobs 1 -o split.h5 --stop-after 1 independent.toml") == 0);
+  // Two realisations (the random fill's default) of the first frequency, then a stop.
+  REQUIRE(box.pdsim("run --quiet --jobs 1 -o split.h5 --stop-after 2 independent.toml") == 0);
   // The finished frequency is readable in the checkpoint file.
   CHECK(pdsim::read_results((box.dir / "split.h5.partial").string()).frf.frequency.size() == 1);
   REQUIRE(box.pdsim("run --quiet --jobs 2 -o split.h5 --resume independent.toml") == 0);
   const pdsim::Results a = pdsim::read_results((box.dir / "whole.h5").string());
   const pdsim::Results b = pdsim::read_results((box.dir / "split.h5").string());
   CHECK(a.meta_text.at("start") == "independent");
+  CHECK(a.frf.realisations == std::vector<int>{2, 2, 2});
   CHECK(a.frf.frequency == std::vector<double>{15.0, 16.0, 17.0});
   CHECK(a.frf.amplitude == b.frf.amplitude);
   CHECK(a.timeseries.time == b.timeseries.time);

@@ -182,7 +182,8 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
     q.push_back({h.imag(), p.judged.phase_ci * std::abs(h), dof});
     e.push_back({p.energy_in.mean, p.energy_in.half_width, dof});
   }
-  const double resolution = 0.1 * settle.tolerance * size;
+  // Fills that agree to within about the tolerance are one state for the question asked.
+  const double resolution = 0.5 * settle.tolerance * size;
   const Combined amplitude = combine_runs(a, resolution), quadrature = combine_runs(q, resolution);
   const MeanInterval energy = combine_runs(e, 0).interval;
   const double amplitude_ci = amplitude.interval.half_width;

@@ -182,7 +182,10 @@ Combined combine_runs(const std::vector<RunMean>& runs, double resolution) {
   const double a = 2 / (9 * k), chi2 = k * std::pow(1 - a + z * std::sqrt(a), 3);
   const MeanInterval spread = independent_mean_interval(means);
   const double pooled_width = student_t975(dof) * std::sqrt(pooled) / r;
-  if (q <= chi2) return {{spread.mean, pooled_width}, true};
+  if (q <= chi2) {  // one state: the pooled interval, wide enough to hold every run's mean
+    const auto [low, high] = std::minmax_element(means.begin(), means.end());
+    return {{spread.mean, std::max(pooled_width, 0.5 * (*high - *low))}, true};
+  }
   return {{spread.mean, std::max(spread.half_width, pooled_width)}, false};
 }
 

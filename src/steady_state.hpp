@@ -57,9 +57,10 @@ struct RunMean {
   int dof = 0;
 };
 // The mean of several independent runs (realisations) of one point. When their means agree
-// within their own intervals (Cochran's Q below its 99 % chi-square quantile; differences below
-// `resolution` never count), the runs sample one stationary state and their intervals pool: the
-// average with sqrt(sum se^2) / R. When they disagree (coexisting regimes of the bed, each run
+// within their own intervals (Cochran's Q below its 99 % chi-square quantile, each run's
+// standard error at least `resolution` / 1.96, so that differences below about twice
+// `resolution` never count), the runs sample one state and their intervals pool: the average
+// with sqrt(sum se^2) / R, widened to hold every run's mean. When they disagree (coexisting regimes of the bed, each run
 // locked in one), no single run's interval means anything and the interval is the spread of the
 // runs' means (Student t, R - 1 degrees of freedom).
 struct Combined {

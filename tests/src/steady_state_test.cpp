@@ -218,7 +218,9 @@ TEST_CASE("realisations that agree pool their intervals, ones that disagree give
   CHECK_FALSE(c.consistent);
   CHECK(c.interval.half_width == doctest::Approx(12.706 * 0.15 * std::abs(kTruth)).epsilon(0.05));
   // Deterministic runs that differ by less than the resolution are one state.
-  CHECK(combine_runs({{1.0, 0, 9}, {1.0001, 0, 9}}, 1e-3).consistent);
+  const Combined close = combine_runs({{1.0, 0, 9}, {1.0001, 0, 9}}, 1e-3);
+  CHECK(close.consistent);
+  CHECK(close.interval.half_width == doctest::Approx(0.5e-4));  // holds both runs' means
   CHECK_FALSE(combine_runs({{1.0, 0, 9}, {1.01, 0, 9}}, 1e-3).consistent);
   CHECK(combine_runs({{1.0, 0, 9}, {1.0, 0, 9}}, 0).interval.half_width == 0);
 }

@@ -5,6 +5,7 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -734,7 +735,21 @@ std::string sweep_name(const std::string& key) {
 }
 
 // A node as TOML writes it (values of a sweep, for names and tables).
+// A value as a reader would write it: floats in the fewest digits that read back the same
+// (0.8, not toml++'s 0.80000000000000004), arrays element by element.
 std::string written(const toml::node& node) {
+  if (const auto* f = node.as_floating_point()) {
+    char buffer[64];
+    const auto end = std::to_chars(buffer, buffer + sizeof buffer, f->get()).ptr;
+    std::string text(buffer, end);
+    if (text.find_first_of(".eniEN") == std::string::npos) text += ".0";
+    return text;
+  }
+  if (const auto* a = node.as_array()) {
+    std::string text = "[";
+    for (std::size_t i = 0; i < a->size(); ++i) text += (i ? ", " : "") + written((*a)[i]);
+    return text + "]";
+  }
   std::ostringstream s;
   node.visit([&](const auto& n) { s << n; });
   return s.str();

@@ -1,8 +1,14 @@
 // HDF5 writer/reader for Results (brief section 6), on the HDF5 1.10 C API.
 #include "io/results.hpp"
 
+#include <fcntl.h>
 #include <hdf5.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
+#include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
@@ -157,8 +163,13 @@ void write_meta(hid_t file_id, const Results& results, bool complete, const std:
   write_attribute(meta.get(), "complete", H5T_STD_I32LE, H5T_NATIVE_INT, &complete_flag, file);
 }
 
-void write_file(const std::string& file, const Results& r, bool complete) {
-  Handle h5file(H5Fcreate(file.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose, file,
+// The whole file built in memory (HDF5's core driver, no backing store) and returned as its
+// bytes: the disk is touched only by write_atomically(), so a full disk or a kill can never
+// leave HDF5 with a half-written file open (which crashed at exit) or a checkpoint half-written.
+std::vector<char> file_image(const std::string& file, const Results& r, bool complete) {
+  Handle access(H5Pcreate(H5P_FILE_ACCESS), H5Pclose, file, "create a file access list");
+  check(H5Pset_fapl_core(access.get(), 1 << 20, 0), file, "select the in-memory driver");
+  Handle h5file(H5Fcreate(file.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, access.get()), H5Fclose, file,
                 "create the file");
   write_meta(h5file.get(), r, complete, file);
   if (!r.timeseries.time.empty())
@@ -185,8 +196,82 @@ void write_file(const std::string& file, const Results& r, bool complete) {
     GroupWriter g(h5file.get(), "/checkpoint", file);
     for (const auto& [name, values] : r.checkpoint) g.column(name, values);
   }
+  check(H5Fflush(h5file.get(), H5F_SCOPE_LOCAL), file, "flush the file");
+  const ssize_t size = check(H5Fget_file_image(h5file.get(), nullptr, 0), file, "size the file");
+  std::vector<char> image(static_cast<std::size_t>(size));
+  check(H5Fget_file_image(h5file.get(), image.data(), image.size()), file, "copy the file");
   h5file.close(file);
+  return image;
 }
+
+[[noreturn]] void fail_io(const std::string& path, const std::string& what, int error) {
+  throw std::runtime_error(path + ": cannot " + what + ": " + std::strerror(error));
+}
+
+// Flushes the folder of `path`, so that a rename in it reaches the disk (an error here leaves
+// the files as they were: nothing to report).
+void sync_folder(const std::string& path) {
+  std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  if (folder.empty()) folder = ".";
+  if (const int dir = open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); dir >= 0) {
+    fsync(dir);
+    close(dir);
+  }
+}
+
+// Writes `bytes` to a temporary file beside `path`, flushes it to the disk and renames it over
+// `path`. Whatever fails (a full disk, a kill), `path` holds either its old contents or the new
+// ones, never a mixture.
+void write_atomically(const std::string& path, const std::vector<char>& bytes) {
+  const std::string temporary = path + ".tmp-" + std::to_string(getpid());
+  const int fd = open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) fail_io(temporary, "create", errno);
+  auto give_up = [&](const std::string& what, int error) {
+    close(fd);
+    unlink(temporary.c_str());
+    fail_io(path, what, error);
+  };
+  for (std::size_t done = 0; done < bytes.size();) {
+    const ssize_t n = write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) give_up("write", errno);
+    done += static_cast<std::size_t>(n);
+  }
+  if (fsync(fd) != 0) give_up("flush to the disk", errno);
+  if (close(fd) != 0) {
+    const int error = errno;
+    unlink(temporary.c_str());
+    fail_io(path, "write", error);
+  }
+  if (rename(temporary.c_str(), path.c_str()) != 0) {
+    const int error = errno;
+    unlink(temporary.c_str());
+    fail_io(path, "rename " + temporary + " to it", error);
+  }
+  sync_folder(path);
+}
+
+}  // namespace
+
+void write_results(const std::string& path, const Results& results, bool complete, bool replace) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const std::string partial = path + ".partial";
+  write_atomically(partial, file_image(path, results, complete));
+  if (!complete) return;
+  const int moved =
+      replace ? rename(partial.c_str(), path.c_str())
+              : renameat2(AT_FDCWD, partial.c_str(), AT_FDCWD, path.c_str(), RENAME_NOREPLACE);
+  const int error = moved != 0 ? errno : 0;
+  if (error == EEXIST)
+    throw std::runtime_error(path +
+                             ": appeared while pdsim ran (another program wrote it) and "
+                             "is not overwritten without --force; the results are in " +
+                             partial);
+  if (error != 0) fail_io(path, "rename " + partial + " to it", error);
+  sync_folder(path);
+}
+
+namespace {
 
 // ---- reading ----
 
@@ -324,16 +409,38 @@ Results read_file(const std::string& file) {
 
 }  // namespace
 
-void write_results(const std::string& path, const Results& results, bool complete) {
-  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  const std::string partial = path + ".partial";
-  write_file(partial, results, complete);
-  if (!complete) return;
-  std::error_code error;
-  std::filesystem::rename(partial, path, error);
-  if (error) {
-    throw std::runtime_error("cannot rename " + partial + " to " + path + ": " + error.message());
+OutputLock::OutputLock(const std::string& path) : file_(path + ".lock") {
+  // Locked, and still the file at that name: a lock taken on a file that the previous holder
+  // removed meanwhile protects nothing, so try again on the new one.
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    fd_ = open(file_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0) fail_io(file_, "create the lock file (is the folder writable?)", errno);
+    if (flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      const int error = errno;
+      close(fd_);
+      if (error == EWOULDBLOCK)
+        throw std::runtime_error(path + ": another pdsim is writing this output (it holds " +
+                                 file_ + "); wait for it, or write elsewhere with -o");
+      fail_io(file_, "lock", error);
+    }
+    struct stat held {
+    }, named{};
+    if (fstat(fd_, &held) == 0 && stat(file_.c_str(), &named) == 0 && held.st_ino == named.st_ino &&
+        held.st_dev == named.st_dev) {
+      // The pid is a courtesy to whoever looks; the lock is what counts.
+      const std::string pid = std::to_string(getpid()) + "\n";
+      [[maybe_unused]] const bool noted =
+          ftruncate(fd_, 0) == 0 && write(fd_, pid.data(), pid.size()) > 0;
+      return;
+    }
+    close(fd_);
   }
+  throw std::runtime_error(file_ + ": cannot take the lock (the file keeps changing)");
+}
+
+OutputLock::~OutputLock() {
+  unlink(file_.c_str());  // before unlocking, so that no one locks a file about to vanish
+  close(fd_);
 }
 
 Results read_results(const std::string& path) {

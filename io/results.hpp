@@ -139,11 +139,29 @@ struct Results {
   std::map<std::string, std::vector<double>> checkpoint;
 };
 
-// Writes `results` to `path` atomically: the data go to "<path>.partial" first, which is
-// renamed over `path` only when `complete` is true, so an interrupted run never leaves a file
-// that looks complete. With complete = false only the ".partial" file is (re)written.
-// Throws std::runtime_error naming the path on any HDF5 failure.
-void write_results(const std::string& path, const Results& results, bool complete);
+// Writes `results` to `path`, or with complete = false to the checkpoint "<path>.partial"
+// (which a complete write then removes). Each write replaces the old file whole, through a
+// flushed temporary file and a rename: a crash, a kill or a full disk leaves the previous file
+// intact, and an interrupted run never leaves a file that looks complete. With replace = false
+// a complete write refuses to overwrite a file that appeared at `path` meanwhile. Throws
+// std::runtime_error naming the path on any failure (HDF5 or the disk).
+void write_results(const std::string& path, const Results& results, bool complete,
+                   bool replace = true);
+
+// An advisory lock on "<path>.lock", held while a run writes `path`: a second pdsim writing the
+// same output is refused at once (std::runtime_error naming the path) instead of overwriting
+// the first one's results unnoticed. The lock file is removed when the lock is released.
+class OutputLock {
+ public:
+  explicit OutputLock(const std::string& path);
+  ~OutputLock();
+  OutputLock(const OutputLock&) = delete;
+  OutputLock& operator=(const OutputLock&) = delete;
+
+ private:
+  std::string file_;
+  int fd_ = -1;
+};
 
 // Reads a file written by write_results (finished or ".partial"). Throws on failure.
 Results read_results(const std::string& path);

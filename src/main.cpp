@@ -96,14 +96,15 @@ int main(int argc, char** argv) {
     }
     options.output = output;
     options.backend = parse_backend(backend);
-    const pdsim::Scene scene = pdsim::build_scene(deck, options.threads, options.backend);
     if (*check) {
+      const pdsim::Scene scene = pdsim::build_scene(deck, options.threads, options.backend);
       std::cout << pdsim::check_report(deck, scene);
       if (deck.sweep.points() > 0 && deck.point == 0)
         std::cout << pdsim::check_sweep(deck, options.threads, options.backend);
       std::cout << "deck OK\n";
       return 0;
     }
+    pdsim::follow_sweep();
     const pdsim::RunReport report = pdsim::run_deck(deck, options);
     std::cout << "wrote " << report.output << "\n" << report.summary << "\n";
     return 0;

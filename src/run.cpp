@@ -827,11 +827,27 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
     throw InputError(deck.path + ": the deck has a [sweep] table of " +
                      std::to_string(deck.sweep.points()) +
                      " points; run them all with `pdsim sweep`, or one with `pdsim run --point K`");
+  // Everything about the output that can be known before computing is checked first.
+  if (path.empty() || path.find('\0') != std::string::npos)
+    throw InputError("output file: expected a path without NUL characters, got '" + path + "'");
+  if (fs::is_directory(path))
+    throw InputError(path + ": is a folder; expected the path of an output file");
   if (fs::exists(path) && !options.force)
     throw InputError(path + ": output file exists; use --force to overwrite it");
+  const fs::path folder = fs::path(path).parent_path();
+  if (deck.point > 0 && !folder.empty()) fs::create_directories(folder);
+  if (!folder.empty() && !fs::is_directory(folder))
+    throw InputError(path + ": the folder " + folder.string() + " does not exist");
+  if (access(folder.empty() ? "." : folder.c_str(), W_OK | X_OK) != 0)
+    throw InputError(path + ": the folder " + (folder.empty() ? "." : folder.string()) +
+                     " is not writable");
+  std::optional<OutputLock> lock;
+  try {
+    lock.emplace(path);
+  } catch (const std::runtime_error& e) {
+    throw InputError(e.what());
+  }
   const Scene scene = build_scene(deck, options.threads, options.backend);
-  if (const fs::path folder = fs::path(path).parent_path(); deck.point > 0 && !folder.empty())
-    fs::create_directories(folder);
   Plan plan = plan_run(deck, scene, options.threads, options.jobs, options.backend);
   Driver driver(deck, std::move(plan.scenes), plan.jobs, options.quiet, path + ".blowup.csv");
   if (options.resume) {
@@ -863,7 +879,7 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   if (driver.stopped())
     return {partial, "stopped after " + std::to_string(driver.finished()) +
                          " frequencies as asked; continue with --resume"};
-  write_results(path, results, true);
+  write_results(path, results, true, options.force);
   return {path, summary_line(results, path, deck)};
 }
 

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -58,6 +59,9 @@ std::string csv(const std::string& field) {
   return quoted + "\"";
 }
 
+// The environment variable that tells a point process which sweep started it.
+constexpr const char* kParent = "PDSIM_SWEEP_PARENT";
+
 pid_t launch(const Point& p, const SweepOptions& o, int threads) {
   std::vector<std::string> args = {"pdsim",
                                    "run",
@@ -79,8 +83,14 @@ pid_t launch(const Point& p, const SweepOptions& o, int threads) {
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, 1, p.log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  std::vector<char*> env;
+  for (char** e = environ; *e != nullptr; ++e)
+    if (std::strncmp(*e, kParent, std::strlen(kParent)) != 0) env.push_back(*e);
+  std::string parent = std::string(kParent) + "=" + std::to_string(getpid());
+  env.push_back(parent.data());
+  env.push_back(nullptr);
   pid_t pid = 0;
-  const int rc = posix_spawn(&pid, "/proc/self/exe", &actions, nullptr, argv.data(), environ);
+  const int rc = posix_spawn(&pid, "/proc/self/exe", &actions, nullptr, argv.data(), env.data());
   posix_spawn_file_actions_destroy(&actions);
   if (rc != 0)
     throw SimulationError(std::string("cannot start the process of a sweep point: ") +
@@ -184,6 +194,14 @@ std::string check_sweep(const Deck& deck, int threads, std::optional<Backend> ba
   for (int k = 1; k <= deck.sweep.points(); ++k)
     s << "  point " << k << ": " << deck.sweep.describe(k) << "\n";
   return s.str();
+}
+
+void follow_sweep() {
+  const char* parent = std::getenv(kParent);
+  if (parent == nullptr) return;
+  prctl(PR_SET_PDEATHSIG, SIGINT);
+  // The sweep may have died before the request: then the parent is already someone else.
+  if (std::to_string(getppid()) != parent) raise(SIGINT);
 }
 
 int run_sweep(const Deck& deck, const SweepOptions& o) {

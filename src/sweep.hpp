@@ -28,6 +28,11 @@ std::string point_file(const Deck& deck, int point);
 // Throws InputError before running anything when a point's deck is invalid.
 int run_sweep(const Deck& deck, const SweepOptions& options);
 
+// In a point process started by a sweep: asks the kernel for SIGINT when the sweep dies (a
+// SIGKILL gives the sweep no chance to pass on its interrupt), so that no point runs on
+// unwatched; SIGINT keeps the point's finished frequencies. Does nothing elsewhere.
+void follow_sweep();
+
 // Validates every point of a sweep (deck and scene) and lists them, for `pdsim check`.
 std::string check_sweep(const Deck& deck, int threads, std::optional<Backend> backend);
 

@@ -870,6 +870,8 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
                          options.stop_after);
   } catch (const SimulationError&) {
     std::signal(SIGINT, previous);
+    if (g_interrupted && !fs::exists(partial))
+      throw SimulationError("interrupted before the first frequency finished; nothing kept");
     if (g_interrupted)
       throw SimulationError(std::string("interrupted; finished frequencies are in ") + partial +
                             ", continue with --resume");

@@ -9,6 +9,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -46,10 +48,24 @@ struct Sandbox {
     }
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
+  // Runs a shell command in the sandbox; returns its exit code (-1 if it did not exit).
+  int pdsim_shell(const std::string& script, std::string* log) const {
+    const fs::path out = dir / "shell.txt";
+    const std::string command =
+        "cd '" + dir.string() + "' && (" + script + ") > '" + out.string() + "' 2>&1";
+    const int status = std::system(command.c_str());
+    if (log) {
+      std::ifstream in(out);
+      std::stringstream s;
+      s << in.rdbuf();
+      *log = s.str();
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
   std::size_t files() const {
     std::size_t n = 0;
     for (const auto& e : fs::directory_iterator(dir))
-      if (e.path().filename() != "log.txt") ++n;
+      if (e.path().filename() != "log.txt" && e.path().filename() != "shell.txt") ++n;
     return n;
   }
 };
@@ -197,4 +213,166 @@ TEST_CASE("a sweep runs every point side by side and tabulates the analytical SD
   const pdsim::Results two = pdsim::read_results((box.dir / "two.h5").string());
   CHECK(two.meta_text.at("sweep_point") == "2: structure.mass = 1.0");
   CHECK(box.pdsim("run --point 4 masses.toml", &log) == 1);
+}
+
+// ---- nothing lost (issue 17): the output checked before computing, locked while written,
+// replaced whole; a full disk, a kill or a second writer never costs a finished frequency ----
+
+namespace {
+
+// The tiny deck with `from` replaced by `to`, written into the sandbox as `name`.
+std::string tiny_deck(const Sandbox& box, const std::string& name, const std::string& from = "",
+                      const std::string& to = "") {
+  std::ifstream in(deck("tiny_stepped_sine.toml"));
+  std::stringstream s;
+  s << in.rdbuf();
+  std::string text = s.str();
+  if (!from.empty()) text.replace(text.find(from), from.size(), to);
+  std::ofstream(box.dir / name) << text;
+  return name;
+}
+
+// The tiny deck made slow enough to be caught running: five frequencies of `periods` periods
+// (about 0.4 s for 10 on one core).
+std::string slow_deck(const Sandbox& box, const std::string& name, int periods = 10) {
+  const std::string n = std::to_string(periods);
+  return tiny_deck(box, name, "frequencies = [15.0, 16.0]\nsettle = { min_periods = 3",
+                   "frequencies = [13.0, 14.0, 15.0, 16.0, 17.0]\nsettle = { min_periods = " + n +
+                       ", max_periods = " + n + ", batches = 2 }\n# min_periods = 3");
+}
+
+// Runs `script` with a fresh tmpfs of `size` mounted at box/M (in a private mount namespace);
+// false when this machine does not allow it (no root, no unshare), so the test can skip.
+bool with_tmpfs(const Sandbox& box, const std::string& size, const std::string& options,
+                const std::string& script, std::string* log) {
+  const std::string probe = "unshare -m true > /dev/null 2>&1";
+  if (std::system(probe.c_str()) != 0) return false;
+  fs::create_directories(box.dir / "M");
+  const std::string mount = "mount -t tmpfs -o size=" + size + options + " tmpfs M";
+  return box.pdsim_shell("unshare -m sh -c '" + mount + " && " + script + "'", log) >= 0;
+}
+
+bool sleep_until(const std::function<bool()>& done, double seconds) {
+  for (int k = 0; k < int(seconds * 20) && !done(); ++k) usleep(50000);
+  return done();
+}
+
+}  // namespace
+
+TEST_CASE("a missing folder, a folder as output and a second writer are refused before any step") {
+  Sandbox box;
+  const std::string tiny = tiny_deck(box, "tiny.toml");
+  std::string log;
+  CHECK(box.pdsim("run --quiet -o nodir/sub/out.h5 " + tiny, &log) == 1);
+  CHECK(log.find("the folder nodir/sub does not exist") != std::string::npos);
+  fs::create_directories(box.dir / "adir");
+  CHECK(box.pdsim("run --quiet --force -o adir " + tiny, &log) == 1);
+  CHECK(log.find("is a folder") != std::string::npos);
+  // Two runs on one output: the second is refused at once, the first finishes unharmed.
+  const std::string slow = slow_deck(box, "slow.toml");
+  REQUIRE(box.pdsim_shell("'" + std::string(PDSIM_BINARY) + "' run --quiet -o same.h5 " + slow +
+                              " > first.txt 2>&1 &",
+                          nullptr) == 0);
+  REQUIRE(sleep_until([&] { return fs::exists(box.dir / "same.h5.lock"); }, 20));
+  CHECK(box.pdsim("run --quiet --force -o same.h5 " + slow, &log) == 1);
+  CHECK(log.find("another pdsim is writing this output") != std::string::npos);
+  REQUIRE(sleep_until([&] { return fs::exists(box.dir / "same.h5"); }, 120));
+  CHECK(sleep_until([&] { return !fs::exists(box.dir / "same.h5.lock"); }, 10));
+  CHECK(pdsim::read_results((box.dir / "same.h5").string()).frf.frequency.size() == 5);
+  // A read-only folder (a read-only mount: root ignores permission bits).
+  if (with_tmpfs(
+          box, "1m", ",ro",
+          "'" + std::string(PDSIM_BINARY) + "' run --quiet -o M/out.h5 " + tiny + "; echo rc=$?",
+          &log)) {
+    CHECK(log.find("rc=1") != std::string::npos);
+    CHECK(log.find("is not writable") != std::string::npos);
+  } else {
+    MESSAGE("skipped the read-only mount: this machine does not allow mounts");
+  }
+}
+
+TEST_CASE("a full disk: exit 2, a clear message, no crash, and the last checkpoint resumes") {
+  Sandbox box;
+  const std::string tiny = tiny_deck(box, "tiny.toml");
+  REQUIRE(box.pdsim("run --quiet --threads 1 -o whole.h5 " + tiny) == 0);
+  // The size of the first checkpoint, to make a disk that holds it but not the next write.
+  REQUIRE(box.pdsim("run --quiet -o first.h5 --stop-after 1 " + tiny) == 0);
+  const auto first = fs::file_size(box.dir / "first.h5.partial");
+  const std::string binary = "'" + std::string(PDSIM_BINARY) + "'";
+  for (const std::string& size :
+       std::vector<std::string>{"8k", "64k", std::to_string((first * 3 / 2) / 4096 * 4096)}) {
+    CAPTURE(size);
+    std::string log;
+    const std::string script = binary + " run --quiet --threads 1 -o M/out.h5 " + tiny +
+                               "; echo rc=$?; cp M/out.h5.partial kept.h5.partial";
+    if (!with_tmpfs(box, size, "", script, &log)) {
+      MESSAGE("skipped: this machine does not allow tmpfs mounts");
+      return;
+    }
+    CHECK(log.find("rc=2") != std::string::npos);  // not 139 (a crash at exit)
+    CHECK(log.find("No space left on device") != std::string::npos);
+    if (size.back() != 'k') {
+      // The checkpoint the full disk left resumes to the uninterrupted run's numbers.
+      REQUIRE(fs::exists(box.dir / "kept.h5.partial"));
+      REQUIRE(box.pdsim("run --quiet --threads 1 -o kept.h5 --resume " + tiny, &log) == 0);
+      const pdsim::Results a = pdsim::read_results((box.dir / "whole.h5").string());
+      const pdsim::Results b = pdsim::read_results((box.dir / "kept.h5").string());
+      CHECK(a.frf.amplitude == b.frf.amplitude);
+      CHECK(a.timeseries.displacement == b.timeseries.displacement);
+    }
+  }
+}
+
+TEST_CASE("SIGKILL at random moments never loses a finished frequency") {
+  Sandbox box;
+  const std::string slow = slow_deck(box, "slow.toml");
+  REQUIRE(box.pdsim("run --quiet --threads 1 -o whole.h5 " + slow) == 0);
+  const pdsim::Results whole = pdsim::read_results((box.dir / "whole.h5").string());
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<int> delay_ms(200, 3000);
+  int caught = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    CAPTURE(trial);
+    fs::remove(box.dir / "k.h5");
+    fs::remove(box.dir / "k.h5.partial");
+    const std::string run = "'" + std::string(PDSIM_BINARY) + "' run --quiet --threads 1 -o k.h5 " +
+                            slow + " > /dev/null 2>&1 & sleep " +
+                            std::to_string(delay_ms(rng) / 1000.0) + "; kill -9 $! 2>/dev/null";
+    box.pdsim_shell(run, nullptr);
+    usleep(100000);
+    if (!fs::exists(box.dir / "k.h5.partial")) continue;  // killed before its first frequency
+    ++caught;
+    // Whatever the moment, the checkpoint is whole and resumes to the same numbers.
+    const pdsim::Results kept = pdsim::read_results((box.dir / "k.h5.partial").string());
+    CHECK(kept.frf.frequency.size() <= 5);
+    REQUIRE(box.pdsim("run --quiet --threads 1 -o k.h5 --resume " + slow) == 0);
+    CHECK(pdsim::read_results((box.dir / "k.h5").string()).frf.amplitude == whole.frf.amplitude);
+  }
+  CHECK(caught >= 3);
+}
+
+TEST_CASE("a SIGKILLed sweep leaves no point process behind, each keeping its checkpoint") {
+  Sandbox box;
+  const std::string name = "sweep_" + std::to_string(getpid()) + ".toml";
+  slow_deck(box, name, 100);  // a minute or more a point: it cannot finish by itself meanwhile
+  std::ofstream(box.dir / name, std::ios::app) << "[sweep]\n\"structure.mass\" = [0.5, 0.6]\n";
+  const std::string binary = "'" + std::string(PDSIM_BINARY) + "'";
+  REQUIRE(box.pdsim_shell(binary + " sweep " + name + " > sweep.txt 2>&1 & echo $! > sweep.pid",
+                          nullptr) == 0);
+  // "[s]weep": the pattern must not match the shell that runs pgrep.
+  const std::string points = "pgrep -f '[s]" + name.substr(1) + " --point' > /dev/null";
+  REQUIRE(sleep_until([&] { return std::system(points.c_str()) == 0; }, 20));
+  box.pdsim_shell("kill -9 $(cat sweep.pid)", nullptr);
+  // Each point gets SIGINT, keeps its finished frequencies and stops.
+  CHECK(sleep_until([&] { return std::system(points.c_str()) != 0; }, 5));
+  std::system(("pkill -f '[s]" + name.substr(1) + " --point'").c_str());  // never leave any
+  int interrupted = 0;
+  for (const auto& entry : fs::directory_iterator(box.dir / "tiny_sweep"))
+    if (entry.path().extension() == ".log") {
+      std::ifstream in(entry.path());
+      std::stringstream text;
+      text << in.rdbuf();
+      interrupted += text.str().find("simulation failed: interrupted") != std::string::npos;
+    }
+  CHECK(interrupted == 2);
 }

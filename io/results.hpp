@@ -113,7 +113,8 @@ void period_columns(T& t, F&& f) {
 }
 
 struct EnergySeries {
-  std::vector<double> time, kinetic, elastic, dissipated_normal, dissipated_tangential, work_in;
+  std::vector<double> time, kinetic, elastic, dissipated_normal, dissipated_tangential,
+      dissipated_rolling, work_in;
 };
 template <class T, class F>
 void energy_columns(T& t, F&& f) {
@@ -122,6 +123,7 @@ void energy_columns(T& t, F&& f) {
   f("elastic", t.elastic, "J", "elastic energy of the structure");
   f("dissipated_normal", t.dissipated_normal, "J", "cumulative, normal contact damping");
   f("dissipated_tangential", t.dissipated_tangential, "J", "cumulative, friction");
+  f("dissipated_rolling", t.dissipated_rolling, "J", "cumulative, rolling resistance");
   f("work_in", t.work_in, "J", "cumulative work of the excitation");
 }
 

@@ -20,7 +20,6 @@ struct ContactParams {
   double tangential_ratio = 2.0 / 7.0;  // linear law + history: kt = ratio * kn
   double friction = 0;                  // Coulomb coefficient
   double rolling_friction = 0;          // rolling resistance coefficient (torque = mu_r R* |Fn|)
-  double slip_velocity = 1e-5;          // m/s, regularises the direction of directional Coulomb
   // Hertz damping per root of (contact radius x m*), derived from the above by
   // with_damping_roots() when an engine takes the scene (NaN until then, so that a kernel
   // given underived constants shows it):

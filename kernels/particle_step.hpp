@@ -107,11 +107,18 @@ constexpr int pair_doubles() {
   return V::kPolydisperse || V::kRolling ? 9 : 6;
 }
 
+// Energy the dissipative elements of contacts take out in a step, J, by mechanism: the normal
+// dashpot; the tangential dashpot, Coulomb cap or directional friction; rolling resistance.
+struct Dissipation {
+  double normal = 0, tangential = 0, rolling = 0;
+};
+
 // What one particle adds to the step totals (reduced by the launcher in a fixed order).
 struct ParticleContribution {
   Vec3 wall_force;   // on the container
   Vec3 wall_torque;  // on the container, about its centre (Rotating variants only)
-  double dissipated_normal = 0, dissipated_tangential = 0, kinetic = 0;
+  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;  // J
+  double kinetic = 0;
   double speed_sq = 0;  // largest |v|^2 at the end of the step (bounds the drift since a rebuild)
   int flags = 0;
 };
@@ -121,9 +128,16 @@ PDSIM_HD void accumulate(ParticleContribution& sum, const ParticleContribution& 
   sum.wall_torque += c.wall_torque;
   sum.dissipated_normal += c.dissipated_normal;
   sum.dissipated_tangential += c.dissipated_tangential;
+  sum.dissipated_rolling += c.dissipated_rolling;
   sum.kinetic += c.kinetic;
   sum.speed_sq = max_of(sum.speed_sq, c.speed_sq);
   sum.flags |= c.flags;
+}
+
+PDSIM_HD void add_dissipation(ParticleContribution& sum, const Dissipation& d) {
+  sum.dissipated_normal += d.normal;
+  sum.dissipated_tangential += d.tangential;
+  sum.dissipated_rolling += d.rolling;
 }
 
 PDSIM_HD Vec3 load3(const double* a, int k) {
@@ -138,31 +152,53 @@ PDSIM_HD void store3(double* a, int k, Vec3 v) {
 // Force and torque of one contact on the particle, and the torque on its partner (of radius
 // `partner_radius`; the partner's force is minus `force`). `normal` points from the other body
 // to this particle; `vrel` is the velocity of this particle's contact point relative to the
-// other's.
+// other's, `omega_rel` its spin relative to the other body's.
 struct ContactOutcome {
   Vec3 force, torque, partner_torque;
 };
 
+// Solid spheres (I = 2/5 m R^2): a force F in the tangent plane at the contact point changes
+// the points' relative velocity by dt F (1/m* + R_i^2/I_i + R_j^2/I_j) = dt F / (2/7 m*).
+constexpr double kTangentMassRatio = 2.0 / 7.0;
+
+// The contact's loads, its dissipation into `dissipated`. `mass_eff` is m*, `inv_inertia` and
+// `partner_inv_inertia` 1/I_i and 1/I_j (0 for a wall): what the contact's own loads act on in
+// a step, so that the dissipative elements count their work at the mid-step velocities and
+// never reverse a slip or a spin within the step (contact_tangential.hpp).
 template <class V>
 PDSIM_HD ContactOutcome contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 omega_rel,
                                 double radius, double partner_radius, double radius_eff,
-                                double mass_eff, bool wall, Vec3* history, double dt,
-                                const ContactParams& p, double& dissipated_normal,
-                                double& dissipated_tangential) {
+                                double mass_eff, double inv_inertia, double partner_inv_inertia,
+                                bool wall, Vec3* history, double dt, const ContactParams& p,
+                                Dissipation& dissipated) {
   const NormalResponse r = V::Normal::respond(overlap, radius_eff, mass_eff, wall, p);
   const double vn = dot(vrel, normal);
   const Vec3 vt = vrel - vn * normal;
   const double fn = r.elastic - r.damping * vn;
-  dissipated_normal += r.damping * vn * vn * dt;
-  const Vec3 ft = V::Tangential::force(history, normal, vt, r, fn, dt, p, dissipated_tangential);
+  // The dashpot's work at the mid-step normal speed (tangential forces and torques leave it).
+  dissipated.normal += r.damping * vn * (vn + 0.5 * dt * fn / mass_eff) * dt;
+  const Vec3 ft = V::Tangential::force(history, normal, vt, r, fn, kTangentMassRatio * mass_eff, dt,
+                                       p, dissipated.tangential);
   ContactOutcome out{fn * normal + ft, cross(-radius * normal, ft),
                      cross(-partner_radius * normal, ft)};
   if constexpr (V::kRolling) {
-    // Constant directional rolling resistance: |T| = mu_r R* |Fn| against the relative spin.
-    const double spin = norm(omega_rel);
-    const double scale = p.rolling_friction * radius_eff * fabs(fn) / max_of(spin, 1e-6);
-    out.torque -= scale * omega_rel;
-    out.partner_torque += scale * omega_rel;
+    // Rolling resistance |T| = mu_r R* |Fn| against the relative spin in the tangent plane
+    // (spin about the normal is torsion, which it does not resist). Where that torque would
+    // reverse the spin within the step, it is the torque that stops it.
+    const Vec3 rolling = omega_rel - dot(omega_rel, normal) * normal;
+    const double rate = norm(rolling);
+    const double resistance = p.rolling_friction * radius_eff * fabs(fn);
+    const double stop = 1.0 / (dt * (inv_inertia + partner_inv_inertia));
+    // Selected, not branched: at rate 0 the division gives inf (or NaN) that is not taken.
+    const double scale = resistance < stop * rate ? resistance / rate : stop;
+    const Vec3 torque = -scale * rolling;
+    out.torque += torque;
+    out.partner_torque -= torque;
+    // Its work at the mid-step spin, which all of this contact's torques change (a rolling
+    // ball's tangential force turns it about as much as the resistance does).
+    const Vec3 spin_change =
+        dt * (inv_inertia * out.torque - partner_inv_inertia * out.partner_torque);
+    dissipated.rolling -= dot(torque, rolling + 0.5 * spin_change) * dt;
   }
   return out;
 }
@@ -225,17 +261,19 @@ PDSIM_HD Vec3 slot_history(const double* history, int slot, bool had) {
 // the history and the loads, so that the CPU can keep them in its batches.
 template <class V>
 PDSIM_HD ContactOutcome pair_contact(int i, int s, Vec3& xi, const ParticleStepArgs& a,
-                                     double& dissipated_normal, double& dissipated_tangential) {
+                                     Dissipation& dissipated) {
   const Body b = body<V>(i, a);
   const int j = a.neighbours[s];
   const Vec3 d{a.in.x[i] - a.in.x[j], a.in.y[i] - a.in.y[j], a.in.z[i] - a.in.z[j]};
-  double radius_j, mass_eff;
+  double radius_j, mass_eff, inv_inertia_j;
   if constexpr (V::kPolydisperse) {
     radius_j = a.radius[j];
     mass_eff = 1.0 / (b.inv_mass + a.inv_mass[j]);
+    inv_inertia_j = V::kRolling ? a.inv_inertia[j] : 0.0;
   } else {
     radius_j = b.radius;
     mass_eff = 0.5 * b.mass;
+    inv_inertia_j = b.inv_inertia;
   }
   const double reach = b.radius + radius_j;
   const double dist = sqrt(dot(d, d));
@@ -248,8 +286,8 @@ PDSIM_HD ContactOutcome pair_contact(int i, int s, Vec3& xi, const ParticleStepA
   // The slot test and this distance may round differently (FMA contraction): an overlap
   // of a few ulp below zero is zero, not a NaN in the Hertz root.
   return contact<V>(max_of(reach - dist, 0.0), normal, vrel, w - wj, b.radius, radius_j,
-                    b.radius * radius_j / reach, mass_eff, false, &xi, a.dt, a.contact,
-                    dissipated_normal, dissipated_tangential);
+                    b.radius * radius_j / reach, mass_eff, b.inv_inertia, inv_inertia_j, false, &xi,
+                    a.dt, a.contact, dissipated);
 }
 
 // A pair's loads in its forward slot s, for the partner to gather (slot_loads() reads them).
@@ -279,9 +317,9 @@ PDSIM_HD void pair_contacts(int i, std::uint64_t touching, const ParticleStepArg
     Vec3 xi{};
     if constexpr (V::Tangential::kHistory)
       xi = slot_history(a.history.neighbour_in, base + k, had >> k & 1u);
-    store_slot_loads<V>(
-        base + k, a,
-        pair_contact<V>(i, base + k, xi, a, sum.dissipated_normal, sum.dissipated_tangential));
+    Dissipation dissipated;
+    store_slot_loads<V>(base + k, a, pair_contact<V>(i, base + k, xi, a, dissipated));
+    add_dissipation(sum, dissipated);
     if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, base + k, xi);
     raise_flag(a.incoming + a.neighbours[base + k]);
   }
@@ -383,18 +421,20 @@ PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribut
 // function for the CUDA threads and the CPU's SIMD batches.
 template <class V>
 PDSIM_HD Load wall_contact(int i, double gap, Vec3 normal, Vec3& xi, const ParticleStepArgs& a,
-                           double& dissipated_normal, double& dissipated_tangential) {
+                           Dissipation& dissipated) {
   const Body b = body<V>(i, a);
   const Vec3 v{a.in.vx[i], a.in.vy[i], a.in.vz[i]};
   const Vec3 w{a.in.wx[i], a.in.wy[i], a.in.wz[i]};
   Vec3 v_wall_rel = v - a.container.velocity;
+  Vec3 w_wall_rel = w;  // the spin relative to the container
   if constexpr (V::kRotating) {
     const Vec3 offset = Vec3{a.in.x[i], a.in.y[i], a.in.z[i]} - a.container.position;
     v_wall_rel -= cross(a.container.angular_velocity, offset);
+    w_wall_rel -= a.container.angular_velocity;
   }
   const Vec3 vrel = v_wall_rel - cross(b.radius * w, normal);
-  const auto out = contact<V>(b.radius - gap, normal, vrel, w, b.radius, 0.0, b.radius, b.mass,
-                              true, &xi, a.dt, a.contact, dissipated_normal, dissipated_tangential);
+  const auto out = contact<V>(b.radius - gap, normal, vrel, w_wall_rel, b.radius, 0.0, b.radius,
+                              b.mass, b.inv_inertia, 0.0, true, &xi, a.dt, a.contact, dissipated);
   return {out.force, out.torque};
 }
 
@@ -421,8 +461,9 @@ PDSIM_HD Load wall_contacts(int i, const ParticleStepArgs& a, ParticleContributi
     Vec3 xi{};
     if constexpr (V::Tangential::kHistory)
       xi = slot_history(a.history.wall_in, i * kWallSlots + slot, had >> slot & 1u);
-    const Load l =
-        wall_contact<V>(i, gap, normal, xi, a, sum.dissipated_normal, sum.dissipated_tangential);
+    Dissipation dissipated;
+    const Load l = wall_contact<V>(i, gap, normal, xi, a, dissipated);
+    add_dissipation(sum, dissipated);
     if constexpr (V::Tangential::kHistory) store3(a.history.wall_out, i * kWallSlots + slot, xi);
     touched = static_cast<std::uint8_t>(touched | (1u << slot));
     load.force += l.force;

@@ -173,7 +173,8 @@ double CoupledSystem::structure_elastic() const {
 // accepting it unless `accept` is false; returns the power the containers put into the particles.
 double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>& force_along) {
   double power = 0;
-  last_.dissipated_normal = last_.dissipated_tangential = last_.particle_kinetic = 0;
+  last_.dissipated_normal = last_.dissipated_tangential = last_.dissipated_rolling = 0;
+  last_.particle_kinetic = 0;
   for (std::size_t k = 0; k < engines_.size(); ++k) {
     const int row = static_cast<int>(k);
     const auto translation = structure_.attachment_translation.row(row);
@@ -190,6 +191,7 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
     power -= dot(totals.wall_force, kin.velocity) + dot(totals.wall_torque, kin.angular_velocity);
     last_.dissipated_normal += totals.dissipated_normal;
     last_.dissipated_tangential += totals.dissipated_tangential;
+    last_.dissipated_rolling += totals.dissipated_rolling;
     last_.particle_kinetic += totals.kinetic;
     particle_steps_ += engines_[k]->count();
   }
@@ -224,6 +226,7 @@ void CoupledSystem::step_prescribed() {
     last_.power_in -= dot(totals.wall_force, kin.velocity);
     last_.dissipated_normal += totals.dissipated_normal;
     last_.dissipated_tangential += totals.dissipated_tangential;
+    last_.dissipated_rolling += totals.dissipated_rolling;
     last_.particle_kinetic += totals.kinetic;
     particle_steps_ += engines_[k]->count();
   }
@@ -245,7 +248,7 @@ void CoupledSystem::step_explicit(bool impulse) {
   // The DEM sub-steps see the container extrapolated linearly over the coupling interval.
   std::fill(force_sum_.begin(), force_sum_.end(), 0.0);
   std::fill(torque_sum_.begin(), torque_sum_.end(), 0.0);
-  double power = 0, dissipated_n = 0, dissipated_t = 0;
+  double power = 0, dissipated_n = 0, dissipated_t = 0, dissipated_r = 0;
   for (int s = 0; s < every_; ++s) {
     power += compute_dampers(t0 + s * dt_, s * dt_, force_);
     for (auto& e : engines_) e->accept();
@@ -255,6 +258,7 @@ void CoupledSystem::step_explicit(bool impulse) {
     }
     dissipated_n += last_.dissipated_normal;
     dissipated_t += last_.dissipated_tangential;
+    dissipated_r += last_.dissipated_rolling;
   }
   const double h = every_ * dt_;
   damper_load_.setZero();
@@ -282,6 +286,7 @@ void CoupledSystem::step_explicit(bool impulse) {
   last_.power_in = engines_.empty() ? 0.0 : power / every_;
   last_.dissipated_normal = dissipated_n;
   last_.dissipated_tangential = dissipated_t;
+  last_.dissipated_rolling = dissipated_r;
   last_.work_external = load_.dot(integrator_->q - q_start_);
   time_ = t0 + h;
 }

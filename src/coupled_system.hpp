@@ -37,9 +37,9 @@ struct StepRecord {
   double velocity = 0;      // m/s
   double damper_force = 0;  // N, force of the particles on the container(s) along `direction`
   double power_in = 0;      // W, power the containers put into the particles
-  double dissipated_normal = 0, dissipated_tangential = 0;  // J in this step
-  double particle_kinetic = 0;                              // J after the step
-  double work_external = 0;  // J, work of the external input in this step
+  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;  // J, step
+  double particle_kinetic = 0;  // J after the step
+  double work_external = 0;     // J, work of the external input in this step
 };
 
 class CoupledSystem {

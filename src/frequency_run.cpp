@@ -85,6 +85,7 @@ void FrequencyRun::step() {
   const double h = dt_ * system_.steps_per_advance();
   dissipated_n_ += r.dissipated_normal;
   dissipated_t_ += r.dissipated_tangential;
+  dissipated_r_ += r.dissipated_rolling;
   work_in_ += r.work_external + (system_.has_structure() ? 0.0 : r.power_in * h);
   if (r.time + 1e-12 >= next_sample_) {
     next_sample_ += sample_every_;
@@ -101,6 +102,7 @@ void FrequencyRun::step() {
       e.elastic.push_back(system_.structure_elastic());
       e.dissipated_normal.push_back(dissipated_n_);
       e.dissipated_tangential.push_back(dissipated_t_);
+      e.dissipated_rolling.push_back(dissipated_r_);
       e.work_in.push_back(work_in_);
     }
   }
@@ -236,8 +238,12 @@ void FrequencyRun::run_free_decay() {
 StateArrays FrequencyRun::save() const {
   StateArrays out = system_.save();
   const Drive& d = system_.drive();
-  out["run.tallies"] = {dissipated_n_, dissipated_t_, work_in_, next_sample_,
-                        d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0};
+  out["run.tallies"] = {dissipated_n_,
+                        dissipated_t_,
+                        work_in_,
+                        next_sample_,
+                        d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0,
+                        dissipated_r_};
   out["run.effective_mass"] = effective_mass_;
   out["run.effective_damping"] = effective_damping_;
   out["run.mean_force"] = mean_force_;
@@ -252,6 +258,7 @@ void FrequencyRun::restore(const StateArrays& state) {
   work_in_ = t.at(2);
   next_sample_ = t.at(3);
   restored_angle_ = t.at(4);
+  dissipated_r_ = t.size() > 5 ? t.at(5) : 0.0;  // checkpoints before rolling was tallied
   restored_ = true;
   effective_mass_ = state.at("run.effective_mass");
   effective_damping_ = state.at("run.effective_damping");

@@ -78,7 +78,7 @@ class FrequencyRun {
   TimeSeries timeseries_;
   std::optional<EnergySeries> energy_;
   double dt_ = 0, sample_every_ = 0, next_sample_ = 0, frequency_ = 0;
-  double dissipated_n_ = 0, dissipated_t_ = 0, work_in_ = 0;
+  double dissipated_n_ = 0, dissipated_t_ = 0, dissipated_r_ = 0, work_in_ = 0;
   // The drive's phase at a restored state (the restored system has no drive yet).
   double restored_angle_ = 0;
   bool restored_ = false;

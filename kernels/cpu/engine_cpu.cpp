@@ -141,25 +141,27 @@ template <class V>
   double* const out[9] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
                           batch.load[3].data(), batch.load[4].data(), batch.load[5].data(),
                           batch.load[6].data(), batch.load[7].data(), batch.load[8].data()};
-  double dissipated_normal = 0, dissipated_tangential = 0;
-#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
+  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;
+#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential, dissipated_rolling)
   for (int e = 0; e < end; ++e) {
-    double normal = 0, tangential = 0;
+    Dissipation d;
     Vec3 h{};
     if constexpr (history) h = {xi[0][e], xi[1][e], xi[2][e]};
-    const ContactOutcome l = pair_contact<V>(particle[e], slot[e], h, a, normal, tangential);
+    const ContactOutcome l = pair_contact<V>(particle[e], slot[e], h, a, d);
     if constexpr (history) xi[0][e] = h.x, xi[1][e] = h.y, xi[2][e] = h.z;
     out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
     out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
     if constexpr (pair_doubles<V>() == 9)
       out[6][e] = l.partner_torque.x, out[7][e] = l.partner_torque.y,
       out[8][e] = l.partner_torque.z;
-    dissipated_normal += e < pairs ? normal : 0.0;
-    dissipated_tangential += e < pairs ? tangential : 0.0;
+    dissipated_normal += e < pairs ? d.normal : 0.0;
+    dissipated_tangential += e < pairs ? d.tangential : 0.0;
+    if constexpr (V::kRolling) dissipated_rolling += e < pairs ? d.rolling : 0.0;
   }
   if constexpr (history) batch.scatter(pairs, a.history.neighbour_out);
   total.dissipated_normal += dissipated_normal;
   total.dissipated_tangential += dissipated_tangential;
+  total.dissipated_rolling += dissipated_rolling;
 }
 
 // The same for the first `walls` wall entries; their loads go to batch.load.
@@ -176,23 +178,24 @@ template <class V>
                       *const ny = batch.normal[1].data(), *const nz = batch.normal[2].data();
   double* const out[6] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
                           batch.load[3].data(), batch.load[4].data(), batch.load[5].data()};
-  double dissipated_normal = 0, dissipated_tangential = 0;
-#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential)
+  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;
+#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential, dissipated_rolling)
   for (int e = 0; e < end; ++e) {
-    double normal = 0, tangential = 0;
+    Dissipation d;
     Vec3 h{};
     if constexpr (history) h = {xi[0][e], xi[1][e], xi[2][e]};
-    const Load l =
-        wall_contact<V>(particle[e], gap[e], {nx[e], ny[e], nz[e]}, h, a, normal, tangential);
+    const Load l = wall_contact<V>(particle[e], gap[e], {nx[e], ny[e], nz[e]}, h, a, d);
     if constexpr (history) xi[0][e] = h.x, xi[1][e] = h.y, xi[2][e] = h.z;
-    dissipated_normal += e < walls ? normal : 0.0;
-    dissipated_tangential += e < walls ? tangential : 0.0;
+    dissipated_normal += e < walls ? d.normal : 0.0;
+    dissipated_tangential += e < walls ? d.tangential : 0.0;
+    if constexpr (V::kRolling) dissipated_rolling += e < walls ? d.rolling : 0.0;
     out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
     out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
   }
   if constexpr (history) batch.scatter(walls, a.history.wall_out);
   sum.dissipated_normal += dissipated_normal;
   sum.dissipated_tangential += dissipated_tangential;
+  sum.dissipated_rolling += dissipated_rolling;
 }
 
 // When a particle's slot tests find no contact, its nearest partner's gap bounds how long none

@@ -246,6 +246,7 @@ TEST_CASE("results: h5dump finds the object names of the brief's output contract
                             "/energy/elastic",
                             "/energy/dissipated_normal",
                             "/energy/dissipated_tangential",
+                            "/energy/dissipated_rolling",
                             "/energy/work_in",
                             "/checkpoint/structure_state"};
   for (const char* dataset : datasets) {

@@ -249,8 +249,9 @@ ContainerKinematics shaken(int n, double dt) {
 void run_shaken(DemEngine& engine, double dt, int first, int last, std::vector<double>& log) {
   for (int n = first; n < last; ++n) {
     const StepTotals& t = engine.compute(shaken(n, dt), dt);
-    log.insert(log.end(), {t.wall_force.x, t.wall_force.y, t.wall_force.z, t.dissipated_normal,
-                           t.dissipated_tangential, t.kinetic, double(t.flags)});
+    log.insert(log.end(),
+               {t.wall_force.x, t.wall_force.y, t.wall_force.z, t.dissipated_normal,
+                t.dissipated_tangential, t.dissipated_rolling, t.kinetic, double(t.flags)});
     engine.accept();
   }
 }
@@ -274,7 +275,7 @@ TEST_CASE("bitwise identical results for 1, 2, 3 and 5 threads") {
   }
   // The scene is not trivial: friction dissipated energy.
   double friction_loss = 0;
-  for (std::size_t k = 4; k < logs[0].size(); k += 7) friction_loss += logs[0][k];
+  for (std::size_t k = 4; k < logs[0].size(); k += 8) friction_loss += logs[0][k];
   CHECK(friction_loss > 0);
   for (std::size_t k = 1; k < finals.size(); ++k) {
     CAPTURE(k + 1);
@@ -298,9 +299,9 @@ TEST_CASE("in-place steps equal double-buffered ones, each computed twice as tig
     guess.velocity = -2.0 * guess.velocity;
     buffered->compute(guess, c.dt);
     const StepTotals& t = buffered->compute(shaken(n, c.dt), c.dt);
-    buffered_log.insert(buffered_log.end(),
-                        {t.wall_force.x, t.wall_force.y, t.wall_force.z, t.dissipated_normal,
-                         t.dissipated_tangential, t.kinetic, double(t.flags)});
+    buffered_log.insert(buffered_log.end(), {t.wall_force.x, t.wall_force.y, t.wall_force.z,
+                                             t.dissipated_normal, t.dissipated_tangential,
+                                             t.dissipated_rolling, t.kinetic, double(t.flags)});
     buffered->accept();
   }
   CHECK(bitwise_equal(buffered_log, in_place_log));

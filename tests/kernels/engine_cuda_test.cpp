@@ -140,8 +140,9 @@ Deviation compare(const Trace& reference, const Trace& other, double container_s
   }
   double dissipated_max = 0, force_max = 0, speed_max = 0;
   for (const StepTotals& t : reference.totals) {
-    dissipated_max = std::max(
-        {dissipated_max, std::fabs(t.dissipated_normal), std::fabs(t.dissipated_tangential)});
+    dissipated_max =
+        std::max({dissipated_max, std::fabs(t.dissipated_normal),
+                  std::fabs(t.dissipated_tangential), std::fabs(t.dissipated_rolling)});
     force_max = std::max(force_max, norm(t.wall_force));
     speed_max = std::max(speed_max, t.speed_sq);
   }
@@ -152,6 +153,8 @@ Deviation compare(const Trace& reference, const Trace& other, double container_s
     keep_worst(d.dissipated, std::fabs(a.dissipated_normal - b.dissipated_normal) / dissipated_max);
     keep_worst(d.dissipated,
                std::fabs(a.dissipated_tangential - b.dissipated_tangential) / dissipated_max);
+    keep_worst(d.dissipated,
+               std::fabs(a.dissipated_rolling - b.dissipated_rolling) / dissipated_max);
     keep_worst(d.wall_force, norm(a.wall_force - b.wall_force) / force_max);
     keep_worst(d.speed, std::fabs(a.speed_sq - b.speed_sq) / speed_max);
     d.flags_equal = d.flags_equal && a.flags == b.flags;
@@ -232,6 +235,7 @@ TEST_CASE("two cuda runs are bitwise identical") {
     REQUIRE(a.totals[n].kinetic == b.totals[n].kinetic);
     REQUIRE(a.totals[n].dissipated_normal == b.totals[n].dissipated_normal);
     REQUIRE(a.totals[n].dissipated_tangential == b.totals[n].dissipated_tangential);
+    REQUIRE(a.totals[n].dissipated_rolling == b.totals[n].dissipated_rolling);
     REQUIRE(a.totals[n].wall_force.x == b.totals[n].wall_force.x);
   }
 }

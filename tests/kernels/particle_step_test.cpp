@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "kernels/neighbours.hpp"
@@ -89,6 +90,63 @@ TEST_CASE("cylinder: a ball thrown in under gravity stays inside") {
   CHECK(worst_side < overlap_bound);
   CHECK(worst_floor < overlap_bound);
   CHECK(worst_side > 0.1 * overlap_bound);  // the bound is not vacuous
+}
+
+// A steel ball resting on the floor of a box under gravity (linear law at its equilibrium
+// overlap, undamped, Mindlin friction 0.3), with rolling resistance mu_r; one step a fiftieth of
+// the contact time.
+struct RollingBall {
+  double mass, dt, gravity = 9.81;
+  std::unique_ptr<DemEngine> engine;
+  RollingBall(double rolling_friction, Vec3 velocity, Vec3 spin) {
+    const double stiffness = 1e5, half = 0.05;
+    mass = ball_mass(kRadius, kSteelDensity);
+    dt = linear_contact_time(stiffness, mass, 1.0) / 50;
+    ContactParams contact = linear_contact(stiffness, 1.0, 0.3);
+    contact.rolling_friction = rolling_friction;
+    EngineConfig c =
+        steel_box({half, half, half}, NormalModel::linear, TangentialModel::history, contact, dt);
+    c.rolling = true;
+    c.gravity = Vec3{0, 0, -gravity};
+    add_particle(c, kRadius, {0, 0, -half + kRadius - mass * gravity / stiffness}, velocity, spin);
+    engine = make_engine(c);
+  }
+  double kinetic() const {
+    const ParticleState p = engine->particles()[0];
+    return 0.5 * mass *
+           (dot(p.velocity, p.velocity) + 0.4 * kRadius * kRadius * dot(p.spin, p.spin));
+  }
+};
+
+TEST_CASE("rolling resistance: a rolling ball stops in the analytic distance, tallied") {
+  // The torque mu_r R m g takes mu_r m g per unit distance rolled from the kinetic energy
+  // 7/10 m v0^2: the ball stops after 7 v0^2 / (10 mu_r g). Rolling resistance is the only
+  // dissipative element here (undamped contact, no slip), so its tally is all the energy lost.
+  const double mu_r = 0.05, v0 = 0.05;
+  RollingBall ball(mu_r, {v0, 0, 0}, {0, v0 / kRadius, 0});
+  const double distance = 0.7 * v0 * v0 / (mu_r * ball.gravity);
+  const double stop_time = 1.4 * v0 / (mu_r * ball.gravity);
+  const double x0 = ball.engine->particles()[0].position.x, kinetic0 = ball.kinetic();
+  double rolling = 0, other = 0;
+  for (int n = 0; n < static_cast<int>(1.2 * stop_time / ball.dt); ++n) {
+    const StepTotals& t = step(*ball.engine, ball.dt);
+    rolling += t.dissipated_rolling;
+    other += std::fabs(t.dissipated_normal) + std::fabs(t.dissipated_tangential);
+  }
+  const ParticleState p = ball.engine->particles()[0];
+  CHECK((p.position.x - x0) / distance == doctest::Approx(1).epsilon(1e-4));  // -3e-5
+  CHECK(ball.kinetic() < 1e-6 * kinetic0);
+  CHECK(rolling == doctest::Approx(kinetic0 - ball.kinetic()).epsilon(1e-9));
+  CHECK(other == 0);
+}
+
+TEST_CASE("rolling resistance: spin about the normal is not resisted") {
+  // Torsion is not rolling: a ball spinning about the floor's normal keeps its spin.
+  RollingBall ball(0.05, {}, {0, 0, 30});
+  double rolling = 0;
+  for (int n = 0; n < 2000; ++n) rolling += step(*ball.engine, ball.dt).dissipated_rolling;
+  CHECK(ball.engine->particles()[0].spin.z == 30);
+  CHECK(rolling == 0);
 }
 
 TEST_CASE("blow-up guard flags") {

@@ -45,11 +45,12 @@ template <class T, class F>
 void frf_columns(T& t, F&& f) {
   f("frequency", t.frequency, "Hz", "excitation frequency");
   f("amplitude", t.amplitude, "m",
-    "first-harmonic displacement amplitude, mean over the stationary periods (over the "
-    "realisations' means when realisations > 1)");
+    "first-harmonic displacement amplitude of the mean over the stationary periods (with "
+    "realisations > 1, the mean of the realisations' amplitudes)");
   f("amplitude_ci", t.amplitude_ci, "m", "95 % half-width of amplitude (its kind: interval)");
   f("phase", t.phase, "rad",
-    "phase of the first harmonic against the input sin(angle): x = amplitude sin(angle + phase)");
+    "phase of the first harmonic against the input sin(angle): x = amplitude sin(angle + "
+    "phase) (with realisations > 1, the mean of their phases)");
   f("phase_ci", t.phase_ci, "rad", "95 % half-width of phase (as amplitude_ci)");
   f("rms", t.rms, "m", "RMS displacement over the stationary periods");
   f("peak", t.peak, "m", "largest |displacement| over the stationary periods");

@@ -171,29 +171,29 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
     dn.push_back(p.mean.dissipated_normal);
     dt.push_back(p.mean.dissipated_tangential);
   }
-  const double size = std::abs(mean);
-  // Each run's harmonic along the combined one (amplitude) and across it (phase x amplitude).
-  const std::complex<double> along = size > 0 ? mean / size : 1.0;
+  // Amplitudes and phases are combined separately: runs in regimes of different phase would
+  // shrink a mean of their complex harmonics below every run's amplitude. Each run's phase is
+  // taken about the direction of that mean.
+  const std::complex<double> along = std::abs(mean) > 0 ? mean / std::abs(mean) : 1.0;
   std::vector<RunMean> a, q, e;
   for (const FrequencyPoint& p : runs) {
-    const std::complex<double> h = std::conj(along) * p.judged.mean;
     const int dof = p.judged.batches - 1;
-    a.push_back({h.real(), p.judged.amplitude_ci, dof});
-    q.push_back({h.imag(), p.judged.phase_ci * std::abs(h), dof});
+    a.push_back({std::abs(p.judged.mean), p.judged.amplitude_ci, dof});
+    q.push_back({std::arg(std::conj(along) * p.judged.mean), p.judged.phase_ci, dof});
     e.push_back({p.energy_in.mean, p.energy_in.half_width, dof});
   }
   // Fills that agree to within about the tolerance are one state for the question asked.
-  const double resolution = 0.5 * settle.tolerance * size;
-  const Combined amplitude = combine_runs(a, resolution), quadrature = combine_runs(q, resolution);
+  const double tolerance = settle.tolerance;
+  const Combined amplitude = combine_runs(a, 0.5 * tolerance * std::abs(mean));
+  const Combined phase = combine_runs(q, 0.5 * tolerance);
   const MeanInterval energy = combine_runs(e, 0).interval;
-  const double amplitude_ci = amplitude.interval.half_width;
-  const double phase_ci = runs.size() == 1 ? runs[0].judged.phase_ci
-                          : size > 0       ? std::min(kPi, quadrature.interval.half_width / size)
-                                           : kPi;
-  const int interval = runs.size() == 1 ? 0 : amplitude.consistent && quadrature.consistent ? 1 : 2;
-  const bool converged = runs.size() == 1 ? runs[0].judged.converged
-                                          : stationary && amplitude_ci <= settle.tolerance * size &&
-                                                phase_ci <= settle.tolerance;
+  const double size = amplitude.interval.mean, amplitude_ci = amplitude.interval.half_width;
+  const double phase_mean = std::arg(along * std::polar(1.0, phase.interval.mean));
+  const double phase_ci = std::min(kPi, phase.interval.half_width);
+  const int interval = runs.size() == 1 ? 0 : amplitude.consistent && phase.consistent ? 1 : 2;
+  const bool converged =
+      runs.size() == 1 ? runs[0].judged.converged
+                       : stationary && amplitude_ci <= tolerance * size && phase_ci <= tolerance;
   auto average = [](const std::vector<double>& v) {
     double s = 0;
     for (double x : v) s += x;
@@ -222,7 +222,7 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
     p.dissipated_power_ci.push_back(energy.half_width * frequency);
     p.force_amplitude.push_back(size);
     p.force_amplitude_ci.push_back(amplitude_ci);
-    p.force_phase.push_back(std::arg(mean));
+    p.force_phase.push_back(phase_mean);
     p.force_phase_ci.push_back(phase_ci);
     p.periods.push_back(periods);
     p.periods_discarded.push_back(discarded);
@@ -235,7 +235,7 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
   f.frequency.push_back(frequency);
   f.amplitude.push_back(size);
   f.amplitude_ci.push_back(amplitude_ci);
-  f.phase.push_back(std::arg(mean));
+  f.phase.push_back(phase_mean);
   f.phase_ci.push_back(phase_ci);
   f.rms.push_back(average(rms));
   f.peak.push_back(peak);

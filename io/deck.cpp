@@ -22,7 +22,11 @@ namespace {
 
 // Guards against typos (an extra zero), not hardware limits.
 constexpr std::int64_t kMaxParticles = 50'000'000;
-constexpr std::int64_t kMaxElements = 10'000;
+// Beam matrices are dense: 500 elements (1000 DOFs) take about 2 s to set up and solve for
+// their modes; 10000 would need gigabytes.
+constexpr std::int64_t kMaxElements = 500;
+// A deck larger than this is not a deck (and /dev/zero is read until memory runs out).
+constexpr std::size_t kMaxDeckBytes = 16u << 20;
 constexpr std::int64_t kMaxPeriods = 1'000'000;
 constexpr std::size_t kMaxFrequencies = 10'000;
 
@@ -1019,9 +1023,14 @@ Deck sweep_point(const Deck& deck, int point) {
 Deck load_deck(const std::string& path) {
   std::ifstream file(path, std::ios::binary);
   if (!file) throw InputError(SourcePos{path, 0, 0}, "", "cannot open the deck file");
-  std::ostringstream text;
-  text << file.rdbuf();
-  return parse_deck(text.str(), path);
+  std::string text(kMaxDeckBytes + 1, '\0');
+  file.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(file.gcount()));
+  if (text.size() > kMaxDeckBytes)
+    throw InputError(SourcePos{path, 0, 0}, "",
+                     "the deck file is larger than " + std::to_string(kMaxDeckBytes >> 20) +
+                         " MiB; expected a TOML deck");
+  return parse_deck(text, path);
 }
 
 }  // namespace pdsim

@@ -79,7 +79,7 @@ EngineConfig bench_config(int particles, int threads, Backend backend) {
   c.contact = hertz_contact(2e11, 0.3, 0.5, 0.3);
   c.contact.linear_stiffness = 1e6;
   c.contact.rolling_friction = 0.01;
-  for (const Vec3& p : fill_particles(d, c.radius, SourcePos{"bench", 0, 0}))
+  for (const Vec3& p : fill_particles(d, c.radius, SourcePos{"bench", 0, 0}, "bench"))
     c.particles.push_back({p, {}, {}});
   return c;
 }
@@ -171,7 +171,7 @@ void bench_coupling() {
   saeki.container.size = {0.05, 0.05, 0.05};
   c.geometry.half_size = 0.5 * saeki.container.size;
   c.particles.clear();
-  for (const Vec3& p : fill_particles(saeki, c.radius, SourcePos{"bench", 0, 0}))
+  for (const Vec3& p : fill_particles(saeki, c.radius, SourcePos{"bench", 0, 0}, "bench"))
     c.particles.push_back({p, {}, {}});
   long long ps = 0;
   const long steps = 20000;

@@ -95,8 +95,14 @@ std::string format(double v) {
 
 }  // namespace
 
+// Largest fill fraction a random fill is tried at.
+constexpr double kRandomFillLimit = 0.35;
+// The shortest time step (s), and the most DEM steps a period can take (an int counts them).
+constexpr double kMinDt = 1e-12;
+constexpr double kMaxStepsPerPeriod = 1e9;
+
 std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<double>& radius,
-                                 const SourcePos& where) {
+                                 const SourcePos& where, const std::string& key) {
   const ContainerSpec& c = damper.container;
   const ContainerGeometry g = geometry_of(c);
   const std::size_t n = radius.size();
@@ -121,12 +127,23 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
       }
     }
     if (centres.size() < n)
-      throw InputError(where, "particles.count",
+      throw InputError(where, key + ".count",
                        "a lattice of spacing 1.02 d holds only " + std::to_string(centres.size()) +
                            " particles in this container, " + std::to_string(n) + " requested");
     return centres;
   }
-  // Random sequential addition with a cell list for the overlap test.
+  // Random sequential addition with a cell list for the overlap test. It jams near a fill
+  // fraction of 0.38 (0.3 in practice, with walls), and trying to reach more would spin for
+  // hours on large counts: refused by volume first.
+  double volume = 0;
+  for (double ri : radius) volume += 4.0 / 3.0 * kPi * ri * ri * ri;
+  const double fraction = volume / container_volume(c);
+  if (fraction > kRandomFillLimit)
+    throw InputError(where, key,
+                     "a random fill of fill fraction " + format(fraction) + ": expected at most " +
+                         format(kRandomFillLimit) +
+                         " (random placement jams near 0.38); use fill = \"lattice\", fewer "
+                         "particles or a larger container");
   std::mt19937_64 gen(damper.particles.seed);
   const double cell = 2 * r_max;
   const int nx = std::max(1, static_cast<int>(std::ceil(2 * g.half_size.x / cell)));
@@ -142,15 +159,11 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
   for (std::size_t p = 0; p < n; ++p) {
     const double r = radius[p];
     for (;;) {
-      if (++attempts > max_attempts) {
-        double volume = 0;
-        for (double ri : radius) volume += 4.0 / 3.0 * kPi * ri * ri * ri;
-        throw InputError(where, "particles",
+      if (++attempts > max_attempts)
+        throw InputError(where, key,
                          "random fill placed only " + std::to_string(p) + " of " +
-                             std::to_string(n) + " particles (fill fraction " +
-                             format(volume / container_volume(c)) +
+                             std::to_string(n) + " particles (fill fraction " + format(fraction) +
                              "); use fill = \"lattice\", fewer particles or a larger container");
-      }
       const Vec3 q{(2 * uniform(gen) - 1) * (g.half_size.x - r),
                    (2 * uniform(gen) - 1) * (g.half_size.y - r),
                    (2 * uniform(gen) - 1) * (g.half_size.z - r)};
@@ -177,6 +190,52 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
   }
   return centres;
 }
+
+namespace {
+
+// What a run will count and compute must be representable, so that `check` refuses what the
+// run would overflow on: a period's steps in an int (FrequencyRun::configure), and structural
+// matrices that stay finite at every frequency of the deck.
+void check_feasible(const Deck& deck, const Scene& s, const std::vector<double>& frequencies) {
+  const ExcitationSpec& x = deck.excitation;
+  const std::string f_key = x.kind == ExcitationKind::sine ? "excitation.frequency"
+                            : deck.positions.count("excitation.frequencies")
+                                ? "excitation.frequencies"
+                                : "excitation.motion.frequency";
+  const std::string dt_key = deck.solver.dt > 0 ? "solver.dt" : f_key;
+  const std::string step_key = deck.solver.dt > 0 ? "solver.dt" : "solver.dt_safety";
+  if (!(s.dt >= kMinDt))
+    throw InputError(
+        deck.where(step_key), step_key,
+        "a time step of " + format(s.dt) + " s: expected at least " + format(kMinDt) + " s");
+  const double every = deck.coupling.every;
+  for (double f : frequencies) {
+    if (1.0 / (32 * f) < kMinDt)  // a run takes at least 32 steps a period
+      throw InputError(deck.where(f_key), f_key,
+                       "a frequency of " + format(f) + " Hz needs steps shorter than " +
+                           format(kMinDt) + " s: expected at most " + format(1 / (32 * kMinDt)) +
+                           " Hz");
+    const double steps = std::ceil(1.0 / (f * s.dt));
+    if (steps * every > kMaxStepsPerPeriod)
+      throw InputError(deck.where(dt_key), dt_key,
+                       "dt = " + format(s.dt) + " s takes " + format(steps) +
+                           " steps a period at " + format(f) + " Hz: expected at most " +
+                           format(kMaxStepsPerPeriod) + " (raise dt or the frequency)");
+  }
+  if (deck.structure.kind == StructureKind::none) return;
+  const LinearStructure st = build_structure(deck);
+  bool finite = st.mass.allFinite() && st.stiffness.allFinite() && st.damping.allFinite();
+  for (double f : frequencies) {
+    const double w = 2 * kPi * f;
+    finite = finite && (st.stiffness - w * w * st.mass).allFinite() && (w * st.damping).allFinite();
+  }
+  if (!finite)
+    throw InputError(deck.where("structure"), "structure",
+                     "its mass, stiffness and damping overflow (non-finite dynamic stiffness at "
+                     "the deck's frequencies): expected values a structure can have");
+}
+
+}  // namespace
 
 Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend) {
   Scene s;
@@ -236,7 +295,8 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
                        "particle diameter " + format(2 * r_max) +
                            " m does not fit in the container (smallest inner size " +
                            format(smallest_extent) + " m)");
-    const std::vector<Vec3> centres = fill_particles(d, e.radius, deck.where(key + ".particles"));
+    const std::vector<Vec3> centres =
+        fill_particles(d, e.radius, deck.where(key + ".particles"), key + ".particles");
     double volume = 0;
     for (std::size_t i = 0; i < centres.size(); ++i) {
       e.particles.push_back({centres[i], {}, {}});
@@ -314,6 +374,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   if (deck.coupling.scheme == CouplingScheme::tight && deck.coupling.every != 1)
     throw InputError(deck.where("coupling.every"), "coupling.every",
                      "tight coupling iterates every DEM step: expected 1");
+  check_feasible(deck, s, f);
   for (auto& d : s.dampers) d.engine.dt = s.dt;
   return s;
 }

@@ -47,8 +47,9 @@ double linear_contact_time(double stiffness, double mass_eff, double restitution
 // Rayleigh time pi r sqrt(rho/G) / (0.1631 nu + 0.8766).
 double rayleigh_time(double radius, double density, double young, double poisson);
 
-// Initial particle centres (world frame, container centred at the origin) for one damper.
+// Initial particle centres (world frame, container centred at the origin) for one damper;
+// errors name `where` and `key` (the damper's particles table).
 std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<double>& radius,
-                                 const SourcePos& where);
+                                 const SourcePos& where, const std::string& key);
 
 }  // namespace pdsim

@@ -57,3 +57,56 @@ TEST_CASE("auto dt is a fixed fraction of the Rayleigh time and check names the 
   CHECK(variant_name(s.dampers[0].engine) == "hertz/history/gravity/mono/box");
   CHECK(s.dampers[0].engine.particles.size() == 196);
 }
+
+namespace {
+
+// The error of building the tiny deck with `from` replaced by `to` ("" when it builds).
+std::string tiny_error(const std::string& from, const std::string& to) {
+  std::string text = load_deck(std::string(PDSIM_TEST_DIR) + "/decks/tiny_stepped_sine.toml").text;
+  text.replace(text.find(from), from.size(), to);
+  try {
+    build_scene(parse_deck(text, "tiny.toml"));
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST_CASE("what a run would overflow on is refused by check, at its key") {
+  CHECK(tiny_error("mass = 0.5", "mass = 0.5").empty());
+  // 1e308 kg: K - w^2 M overflows at 15 Hz; a damping ratio of 1e308 makes C infinite.
+  CHECK(tiny_error("mass = 0.5", "mass = 1e308").find("'structure': its mass, stiffness") !=
+        std::string::npos);
+  CHECK(tiny_error("damping_ratio = 0.02", "damping_ratio = 1e308").find("overflow") !=
+        std::string::npos);
+  // 6.7e9 steps a period at dt = 1e-11 s would overflow the int that counts them.
+  const std::string dt = tiny_error("[output]", "[solver]\ndt = 1e-11\n[output]");
+  CHECK(dt.find("'solver.dt': dt = 1e-11 s takes 6.667e+09 steps a period at 15 Hz") !=
+        std::string::npos);
+  CHECK(tiny_error("frequencies = [15.0, 16.0]", "frequencies = [1e-6, 16]")
+            .find("'excitation.frequencies': dt = ") != std::string::npos);
+  CHECK(tiny_error("frequencies = [15.0, 16.0]", "frequencies = [1e308, 16]")
+            .find("expected at most 3.125e+10 Hz") != std::string::npos);
+}
+
+TEST_CASE("a random fill beyond what random placement reaches is refused at once, by volume") {
+  // 5000 spheres of 4 mm in a 20 mm box: a fill fraction of 20.9, refused before any attempt
+  // (it used to try 1e7 placements first; 5e7 particles would have taken hours).
+  const std::string e = tiny_error("count = 20,", "count = 5000,");
+  CHECK(e.find("tiny.toml:11:13: 'damper[0].particles': a random fill of fill fraction 20.94") !=
+        std::string::npos);
+}
+
+TEST_CASE("a deck file larger than 16 MiB is refused without reading it all") {
+  const std::string e = [] {
+    try {
+      load_deck("/dev/zero");
+    } catch (const InputError& error) {
+      return std::string(error.what());
+    }
+    return std::string();
+  }();
+  CHECK(e.find("larger than 16 MiB") != std::string::npos);
+}

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <iostream>
 #include <map>
 #include <mutex>
 #include <sstream>
@@ -656,6 +657,7 @@ class Driver {
     t["coupling"] = schemes[static_cast<int>(deck_.coupling.scheme)];
     const Scene& scene = scenes_[0];
     t["dt_basis"] = scene.dt_basis;
+    if (!scene.warning.empty()) t["warning"] = scene.warning;
     const ExcitationKind kind = deck_.excitation.kind;
     if (kind == ExcitationKind::stepped_sine || kind == ExcitationKind::prescribed)
       t["start"] = start_name(deck_.excitation.start);
@@ -848,6 +850,7 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
     throw InputError(e.what());
   }
   const Scene scene = build_scene(deck, options.threads, options.backend);
+  if (!scene.warning.empty()) std::cerr << "warning: " << scene.warning << "\n";
   Plan plan = plan_run(deck, scene, options.threads, options.jobs, options.backend);
   Driver driver(deck, std::move(plan.scenes), plan.jobs, options.quiet, path + ".blowup.csv");
   if (options.resume) {
@@ -919,6 +922,7 @@ std::string check_report(const Deck& deck, const Scene& scene) {
       << "\n";
     if (scene.rayleigh_time > 0) s << "Rayleigh time: " << scene.rayleigh_time << " s\n";
     s << "dt: " << scene.dt << " s (" << scene.dt_basis << "; limit " << scene.dt_limit << " s)\n";
+    if (!scene.warning.empty()) s << "WARNING: " << scene.warning << "\n";
     steps_per_second = 1.0 / scene.dt;
   }
   s << "backend: " << backend_name(scene.backend) << " (" << scene.backend_reason << ")\n";

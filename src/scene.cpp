@@ -339,6 +339,11 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
                              "solver.allow_unstable = true");
       s.dt = deck.solver.dt;
       s.dt_basis = "given in the deck";
+      if (s.dt > s.dt_limit)
+        s.warning = "dt = " + format(s.dt) + " s is " + format(s.dt / s.dt_limit) +
+                    " times the stability limit " + format(s.dt_limit) +
+                    " s (solver.allow_unstable): contacts are under-resolved and results may "
+                    "be shifted or blow up";
     }
   }
 

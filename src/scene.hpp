@@ -23,6 +23,7 @@ struct Scene {
   std::string backend_reason;
   double dt = 0;             // s, largest step the solver may take
   double dt_limit = 0;       // s, stability/accuracy limit for an explicit dt
+  std::string warning;       // what the user accepted against advice (allow_unstable), or ""
   double contact_time = 0;   // s, linear: exact binary contact time; hertz: estimate at 1 m/s
   double rayleigh_time = 0;  // s, hertz only
   std::string dt_basis;      // how dt was chosen

@@ -186,7 +186,9 @@ Combined combine_runs(const std::vector<RunMean>& runs, double resolution) {
     const auto [low, high] = std::minmax_element(means.begin(), means.end());
     return {{spread.mean, std::max(pooled_width, 0.5 * (*high - *low))}, true};
   }
-  return {{spread.mean, std::max(spread.half_width, pooled_width)}, false};
+  // The runs' means scatter with their own noise as well as the regimes: their Student-t
+  // interval holds both (a run without an interval of its own still counts).
+  return {spread, false};
 }
 
 namespace {

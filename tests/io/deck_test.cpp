@@ -121,7 +121,7 @@ TEST_CASE("a deck with every section keeps its values, integers read as reals") 
   CHECK(deck.bed.max_time == 0.5);
   CHECK(deck.bed.file == "bed.h5");
 
-  CHECK(deck.coupling.scheme == CouplingScheme::tight);
+  CHECK(deck.coupling.scheme == CouplingScheme::loose);
   CHECK(deck.coupling.every == 4);
   CHECK(deck.coupling.tolerance == 1e-8);
   CHECK(deck.coupling.max_iterations == 20);

@@ -157,12 +157,17 @@ TEST_CASE("independent frequencies stopped and resumed keep every point and time
   CHECK(a.timeseries.displacement == b.timeseries.displacement);
 }
 
-TEST_CASE("check passes on every example deck") {
+TEST_CASE("check passes on every example deck and every good test deck") {
   Sandbox box;
-  for (const auto& entry : fs::directory_iterator(std::string(PDSIM_TEST_DIR) + "/../examples")) {
+  std::vector<fs::path> decks;
+  for (const auto& entry : fs::directory_iterator(std::string(PDSIM_TEST_DIR) + "/../examples"))
+    decks.push_back(entry.path());
+  for (const auto& entry : fs::directory_iterator(std::string(PDSIM_TEST_DIR) + "/decks"))
+    if (entry.path().filename().string().rfind("good_", 0) == 0) decks.push_back(entry.path());
+  for (const fs::path& path : decks) {
     std::string log;
-    CAPTURE(entry.path().string());
-    CHECK(box.pdsim("check '" + entry.path().string() + "'", &log) == 0);
+    CAPTURE(path.string());
+    CHECK(box.pdsim("check '" + path.string() + "'", &log) == 0);
     CHECK(log.find("deck OK") != std::string::npos);
   }
   CHECK(box.files() == 0);

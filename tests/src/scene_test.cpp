@@ -4,6 +4,7 @@
 #include <cmath>
 #include <string>
 
+#include "src/run.hpp"
 #include "src/scene.hpp"
 
 using namespace pdsim;
@@ -109,4 +110,14 @@ TEST_CASE("a deck file larger than 16 MiB is refused without reading it all") {
     return std::string();
   }();
   CHECK(e.find("larger than 16 MiB") != std::string::npos);
+}
+
+TEST_CASE("allow_unstable runs with a warning in the scene and in the check report") {
+  std::string text = load_deck(std::string(PDSIM_TEST_DIR) + "/decks/bad_dt_above_limit.toml").text;
+  text.replace(text.find("[solver]"), 8, "[solver]\nallow_unstable = true");
+  const Deck deck = parse_deck(text, "unstable.toml");
+  const Scene scene = build_scene(deck);
+  CHECK(scene.dt > scene.dt_limit);
+  CHECK(scene.warning.find("times the stability limit") != std::string::npos);
+  CHECK(check_report(deck, scene).find("WARNING: dt = ") != std::string::npos);
 }

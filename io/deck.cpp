@@ -55,10 +55,17 @@ std::string show_real(double value) {
 }
 
 // What the user wrote, for "expected X, got Y".
+// A value as quoted in a message: long ones cut, so that an error line stays a line.
+std::string clipped(const std::string& text) {
+  constexpr std::size_t kShown = 60;
+  if (text.size() <= kShown) return text;
+  return text.substr(0, kShown) + "... (" + std::to_string(text.size()) + " characters)";
+}
+
 std::string describe(const toml::node& node) {
   if (auto v = node.as_floating_point()) return show_real(v->get());
   if (auto v = node.as_integer()) return std::to_string(v->get());
-  if (auto v = node.as_string()) return "\"" + v->get() + "\"";
+  if (auto v = node.as_string()) return "\"" + clipped(v->get()) + "\"";
   if (auto v = node.as_boolean()) return v->get() ? "true" : "false";
   if (node.is_array()) return "an array";
   if (node.is_table()) return "a table";
@@ -893,7 +900,11 @@ toml::table parse_root(const std::string& text, const std::string& path) {
   try {
     return toml::parse(std::string_view(text), std::string_view(path));
   } catch (const toml::parse_error& error) {
-    throw InputError(to_pos(path, error.source()), "", std::string(error.description()));
+    std::string what(error.description());
+    // toml++ quotes a redefined dotted key garbled ('"ststructure.mass" '); say it plainly.
+    if (what.find("cannot redefine existing") != std::string::npos)
+      what = "a key or table given twice: expected each key once";
+    throw InputError(to_pos(path, error.source()), "", what.substr(0, 300));
   }
 }
 

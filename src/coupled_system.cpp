@@ -185,7 +185,7 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
     const ContainerKinematics kin =
         container(u + lead * u_dot, u_dot, theta + lead * theta_dot, theta_dot);
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
-    if (totals.flags) check(totals, k, t, kin.position);
+    if (totals.flags) check(totals, k, kin.position, when(t));
     force_along[k] = dot(totals.wall_force, direction_);
     torque_[k] = dot(totals.wall_torque, rotation_axis_);
     power -= dot(totals.wall_force, kin.velocity) + dot(totals.wall_torque, kin.angular_velocity);
@@ -218,7 +218,7 @@ void CoupledSystem::step_prescribed() {
   last_.velocity = dot(kin.velocity, m.axis);
   for (std::size_t k = 0; k < engines_.size(); ++k) {
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
-    if (totals.flags) check(totals, k, time_, kin.position);
+    if (totals.flags) check(totals, k, kin.position, when(time_));
     engines_[k]->accept();
     displacement_[k] = u;
     force_mean_[k] = dot(totals.wall_force, m.axis);
@@ -357,7 +357,8 @@ double CoupledSystem::settle_step(double dt) {
     kin.velocity = {};
     kin.angular_velocity = {};
     const StepTotals& totals = engines_[k]->compute(kin, dt);
-    if (totals.flags) check(totals, k, time_, kin.position);
+    if (totals.flags)
+      check(totals, k, kin.position, "while the bed settled (dt " + std::to_string(dt) + " s)");
     engines_[k]->accept();
     speed_sq = std::max(speed_sq, totals.speed_sq);
     particle_steps_ += engines_[k]->count();
@@ -422,14 +423,20 @@ void CoupledSystem::start_on(const Eigen::VectorXcd& harmonic,
 
 // Blow-up guard: a non-finite value or a particle outside its container stops the run with
 // the step, time and first offending particle (its state at the end of the failing step).
-void CoupledSystem::check(const StepTotals& totals, std::size_t damper, double t,
-                          Vec3 container_position) {
+std::string CoupledSystem::when(double t) const {
+  std::ostringstream s;
+  s.precision(6);
+  s << "at t = " << t << " s (step " << std::llround(t / dt_) << ", dt " << dt_ << " s)";
+  return s.str();
+}
+
+void CoupledSystem::check(const StepTotals& totals, std::size_t damper, Vec3 container_position,
+                          const std::string& when) {
   engines_[damper]->accept();  // show the state the step produced
   const Vec3 h = scene_.dampers[damper].engine.geometry.half_size;
   std::ostringstream s;
   s.precision(6);
-  s << "blow-up at t = " << t << " s (step " << std::llround(t / dt_) << ", dt " << dt_
-    << " s), damper " << damper << ": "
+  s << "blow-up " << when << ", damper " << damper << ": "
     << ((totals.flags & kNonFinite) ? "non-finite particle state"
                                     : "a particle left its container");
   const auto particles = engines_[damper]->particles();

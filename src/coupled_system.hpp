@@ -102,7 +102,9 @@ class CoupledSystem {
   void step_explicit(bool impulse);
   void step_tight();
   double compute_dampers(double t, double lead, std::vector<double>& force_along);
-  void check(const StepTotals& totals, std::size_t damper, double t, Vec3 container_position);
+  void check(const StepTotals& totals, std::size_t damper, Vec3 container_position,
+             const std::string& when);
+  std::string when(double t) const;  // "at t = ... s (step ..., dt ... s)"
 
   const Scene& scene_;
   CouplingSpec coupling_;

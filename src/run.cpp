@@ -349,11 +349,15 @@ class Driver {
       Progress progress(quiet_, 1, 1.0);
       FrequencyRun run(deck_, scenes_[0],
                        [&](double f, double done) { progress.update(0, done, f); });
-      reports_[0] = run.settle_bed();
-      if (x.kind == ExcitationKind::free_decay) {
-        run.run_free_decay();
-      } else {
-        points_[0][0] = run.run_frequency(x.frequency, FrequencyStart::carried);
+      try {
+        reports_[0] = run.settle_bed();
+        if (x.kind == ExcitationKind::free_decay) {
+          run.run_free_decay();
+        } else {
+          points_[0][0] = run.run_frequency(x.frequency, FrequencyStart::carried);
+        }
+      } catch (const SimulationError& e) {
+        fail(run, e);
       }
       results_.timeseries = run.timeseries();
       results_.energy = run.energy();
@@ -370,6 +374,8 @@ class Driver {
   }
 
   bool stopped() const { return stopped_; }
+  // What a failed run had computed, or nullptr (see fail()).
+  const Results* failed() const { return failed_ ? &*failed_ : nullptr; }
   std::size_t finished() const { return finished_; }
 
  private:
@@ -433,9 +439,22 @@ class Driver {
   }
 
   // Dumps the particles of a failed run beside the output and says where.
+  // Also keeps what the failed run computed (its time series up to the failure, the finished
+  // frequencies) for failed(): a run that blows up in its only segment would otherwise leave
+  // nothing but the particle dump.
   [[noreturn]] void fail(const FrequencyRun& run, const SimulationError& e) {
     if (g_interrupted || dump_path_.empty() || std::string(e.what()) == "interrupted") throw;
     run.system().dump(dump_path_);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!failed_) {
+        Results& f = failed_.emplace(results_);
+        if (!independent()) f.timeseries = run.timeseries(), f.energy = run.energy();
+        add_rows(f);
+        provenance(f);
+        f.meta_text["failure"] = e.what();
+      }
+    }
     throw SimulationError(std::string(e.what()) + "\nparticle states written to " + dump_path_);
   }
 
@@ -702,6 +721,7 @@ class Driver {
   int stop_after_ = 0;
   std::atomic<bool> stopped_{false};
   bool bed_from_file_ = false;
+  std::optional<Results> failed_;
   std::size_t finished_ = 0;
   long long particle_steps_ = 0;
   double simulated_ = 0, wall_ = 0, wall_before_ = 0;
@@ -871,8 +891,18 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   try {
     results = driver.run([&](const Results& snapshot) { write_results(path, snapshot, false); },
                          options.stop_after);
-  } catch (const SimulationError&) {
+  } catch (const SimulationError& e) {
     std::signal(SIGINT, previous);
+    if (const Results* failed = driver.failed()) {
+      const std::string kept = path + ".failed.h5";
+      try {
+        write_results(kept, *failed, true, true);
+      } catch (const std::exception& unwritten) {
+        throw SimulationError(std::string(e.what()) + "\n(not kept: " + unwritten.what() + ")");
+      }
+      throw SimulationError(std::string(e.what()) +
+                            "\nwhat was computed up to the failure: " + kept);
+    }
     if (g_interrupted && !fs::exists(partial))
       throw SimulationError("interrupted before the first frequency finished; nothing kept");
     if (g_interrupted)

@@ -52,6 +52,16 @@ std::string last_line(const std::string& path) {
   return last;
 }
 
+// Why a point's process failed: its "error:" or "simulation failed:" line (the last line is
+// often only where its particles were dumped), else its last line.
+std::string cause(const std::string& path) {
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("error: ", 0) == 0 || line.rfind("simulation failed: ", 0) == 0)
+      return line.substr(0, 400);
+  return last_line(path);
+}
+
 std::string csv(const std::string& field) {
   if (field.find_first_of(",\"\n") == std::string::npos) return field;
   std::string quoted = "\"";
@@ -283,7 +293,7 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
                                                        ? "interrupted; finished frequencies kept"
                                                        : "interrupted before its first frequency")
                                                 : "failed (exit code " + std::to_string(p.code) +
-                                                      "): " + last_line(p.log) + " [" + p.log + "]";
+                                                      "): " + cause(p.log) + " [" + p.log + "]";
     std::printf("point %d/%d (%s): %s\n", p.index, count, deck.sweep.describe(p.index).c_str(),
                 outcome.c_str());
     std::fflush(stdout);

@@ -619,5 +619,18 @@ TEST_CASE("a bad sweep value or key is refused at its place in the [sweep] table
   }
 }
 
+TEST_CASE("a key given twice is said plainly, and a huge value is cut in the message") {
+  const std::string twice = error_of(kSdof + kSine + "[sweep]\n\"structure.mass\" = [1, 2]\n" +
+                                     "\"structure.mass\" = [3]\n");
+  CHECK(twice.find("a key or table given twice: expected each key once") != std::string::npos);
+  CHECK(twice.find("ststructure") == std::string::npos);  // toml++'s garbled quote
+  std::string deck = kSdof + kSine;
+  deck.replace(deck.find("mass = 2.0"), 10, "mass = \"" + std::string(1'000'000, 'x') + "\"");
+  const std::string huge = error_of(deck);
+  CHECK(huge.find("'structure.mass'") != std::string::npos);
+  CHECK(huge.find("(1000000 characters)") != std::string::npos);
+  CHECK(huge.size() < 300);
+}
+
 }  // namespace
 }  // namespace pdsim

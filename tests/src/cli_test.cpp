@@ -381,3 +381,26 @@ TEST_CASE("a SIGKILLed sweep leaves no point process behind, each keeping its ch
     }
   CHECK(interrupted == 2);
 }
+
+TEST_CASE("a run that blows up keeps its particle dump and the time series up to the failure") {
+  Sandbox box;
+  std::ifstream in(deck("bad_dt_above_limit.toml"));
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string unstable = text.str();
+  // 92 times the stability limit, accepted against advice: a blow-up within 0.05 s.
+  unstable.replace(unstable.find("dt = 1e-5"), 9, "dt = 1e-4\nallow_unstable = true");
+  std::ofstream(box.dir / "unstable.toml")
+      << unstable << "[gravity]\nvector = [0, 0, -9.81]\n[bed]\nsettle = false\n";
+  std::string log;
+  CHECK(box.pdsim("run --quiet -o u.h5 unstable.toml", &log) == 2);
+  CHECK(log.find("warning: dt = 0.0001 s is 92.52 times the stability limit") != std::string::npos);
+  CHECK(log.find("blow-up at t = ") != std::string::npos);
+  CHECK(fs::exists(box.dir / "u.h5.blowup.csv"));
+  REQUIRE(fs::exists(box.dir / "u.h5.failed.h5"));
+  CHECK_FALSE(fs::exists(box.dir / "u.h5"));
+  const pdsim::Results kept = pdsim::read_results((box.dir / "u.h5.failed.h5").string());
+  CHECK(kept.meta_text.at("failure").find("blow-up at t = ") == 0);
+  CHECK(kept.timeseries.time.size() > 5);
+  CHECK(kept.timeseries.time.back() < 0.1);
+}

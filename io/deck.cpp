@@ -703,6 +703,8 @@ OutputSpec read_output(const Table& t) {
   t.allow_only({"file", "every", "energy"});
   o.file = t.text("file").value_or("");
   if (t.has("file") && o.file.empty()) t.fail("file", "expected a file name, got \"\"");
+  if (o.file.find('\0') != std::string::npos)
+    t.fail("file", "expected a file name, got one with a NUL character (it would cut the path)");
   o.every = t.real("every", "a non-negative number (s)", non_negative).value_or(o.every);
   o.energy = t.boolean("energy").value_or(o.energy);
   return o;

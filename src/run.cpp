@@ -841,6 +841,9 @@ Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
   return driver.run({}, 0);
 }
 
+// Free space below which a run warns before it starts, bytes.
+constexpr std::uintmax_t kLowSpace = 64u << 20;
+
 RunReport run_deck(const Deck& deck, const RunOptions& options) {
   const std::string path = output_path(deck, options);
   const std::string partial = path + ".partial";
@@ -860,9 +863,15 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   if (deck.point > 0 && !folder.empty()) fs::create_directories(folder);
   if (!folder.empty() && !fs::is_directory(folder))
     throw InputError(path + ": the folder " + folder.string() + " does not exist");
+  std::error_code ignored;
   if (access(folder.empty() ? "." : folder.c_str(), W_OK | X_OK) != 0)
     throw InputError(path + ": the folder " + (folder.empty() ? "." : folder.string()) +
                      " is not writable");
+  // A full disk costs no finished work (the last checkpoint survives), but say it early.
+  if (const auto space = fs::space(folder.empty() ? "." : folder, ignored);
+      space.available < kLowSpace)
+    std::cerr << "warning: only " << space.available / (1 << 20) << " MiB free for " << path
+              << "; a full disk stops the run (exit 2, the last checkpoint kept)\n";
   std::optional<OutputLock> lock;
   try {
     lock.emplace(path);

@@ -235,9 +235,13 @@ class Table {
     const std::string expected = "a non-zero vector of 3 numbers [x, y, z]";
     const auto v = vec3(k, expected, any_value);
     if (!v) return std::nullopt;
-    const double length = norm(*v);
-    if (length == 0) fail(k, "expected " + expected + ", got [0, 0, 0]");
-    return (1.0 / length) * *v;
+    // Scaled by its largest component first, so that [1e308, 0, 1] has a length (1e308^2
+    // overflows) and [1e-200, 0, 0] is not taken for zero.
+    const double scale = std::max({std::fabs(v->x), std::fabs(v->y), std::fabs(v->z)});
+    if (scale == 0) fail(k, "expected " + expected + ", got [0, 0, 0]");
+    if (!std::isfinite(scale)) fail(k, "expected " + expected + " (finite)");
+    const Vec3 w = (1.0 / scale) * *v;
+    return (1.0 / norm(w)) * w;
   }
 
   std::optional<Table> sub(std::string_view k, const std::string& expected) const {

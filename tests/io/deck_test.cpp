@@ -619,6 +619,18 @@ TEST_CASE("a bad sweep value or key is refused at its place in the [sweep] table
   }
 }
 
+TEST_CASE("directions are normalised without overflow or underflow") {
+  auto direction = [](const std::string& v) {
+    return parse_deck(kSdof + "direction = " + v + "\n" + kSine, "d").structure.direction;
+  };
+  const Vec3 big = direction("[1e308, 0, 1]");  // its length squared overflows
+  CHECK(big.x == 1.0);
+  CHECK(std::isfinite(big.z));
+  CHECK(direction("[1e-200, 0, 0]").x == 1.0);  // its length squared underflows
+  check_error(kSdof + "direction = [0, 0, 0]\n" + kSine,
+              "5:13: 'structure.direction': ", "got [0, 0, 0]");
+}
+
 TEST_CASE("a key given twice is said plainly, and a huge value is cut in the message") {
   const std::string twice = error_of(kSdof + kSine + "[sweep]\n\"structure.mass\" = [1, 2]\n" +
                                      "\"structure.mass\" = [3]\n");

@@ -34,23 +34,10 @@ struct Sandbox {
     static int n = 0;
     return n;
   }
-  // Runs pdsim with `args` in the sandbox; returns the exit code, output in `log`.
-  int pdsim(const std::string& args, std::string* log = nullptr) const {
+  // Runs a shell command in the sandbox; returns its exit code (-1 if it did not exit), its
+  // output in `log`.
+  int shell(const std::string& script, std::string* log = nullptr) const {
     const fs::path out = dir / "log.txt";
-    const std::string command = "cd '" + dir.string() + "' && '" + PDSIM_BINARY + "' " + args +
-                                " > '" + out.string() + "' 2>&1";
-    const int status = std::system(command.c_str());
-    if (log) {
-      std::ifstream in(out);
-      std::stringstream s;
-      s << in.rdbuf();
-      *log = s.str();
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-  // Runs a shell command in the sandbox; returns its exit code (-1 if it did not exit).
-  int pdsim_shell(const std::string& script, std::string* log) const {
-    const fs::path out = dir / "shell.txt";
     const std::string command =
         "cd '" + dir.string() + "' && (" + script + ") > '" + out.string() + "' 2>&1";
     const int status = std::system(command.c_str());
@@ -62,10 +49,14 @@ struct Sandbox {
     }
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
+  // Runs pdsim with `args` in the sandbox.
+  int pdsim(const std::string& args, std::string* log = nullptr) const {
+    return shell("'" + std::string(PDSIM_BINARY) + "' " + args, log);
+  }
   std::size_t files() const {
     std::size_t n = 0;
     for (const auto& e : fs::directory_iterator(dir))
-      if (e.path().filename() != "log.txt" && e.path().filename() != "shell.txt") ++n;
+      if (e.path().filename() != "log.txt") ++n;
     return n;
   }
 };
@@ -254,7 +245,7 @@ bool with_tmpfs(const Sandbox& box, const std::string& size, const std::string& 
   if (std::system(probe.c_str()) != 0) return false;
   fs::create_directories(box.dir / "M");
   const std::string mount = "mount -t tmpfs -o size=" + size + options + " tmpfs M";
-  return box.pdsim_shell("unshare -m sh -c '" + mount + " && " + script + "'", log) >= 0;
+  return box.shell("unshare -m sh -c '" + mount + " && " + script + "'", log) >= 0;
 }
 
 bool sleep_until(const std::function<bool()>& done, double seconds) {
@@ -275,9 +266,9 @@ TEST_CASE("a missing folder, a folder as output and a second writer are refused 
   CHECK(log.find("is a folder") != std::string::npos);
   // Two runs on one output: the second is refused at once, the first finishes unharmed.
   const std::string slow = slow_deck(box, "slow.toml");
-  REQUIRE(box.pdsim_shell("'" + std::string(PDSIM_BINARY) + "' run --quiet -o same.h5 " + slow +
-                              " > first.txt 2>&1 &",
-                          nullptr) == 0);
+  REQUIRE(box.shell("'" + std::string(PDSIM_BINARY) + "' run --quiet -o same.h5 " + slow +
+                        " > first.txt 2>&1 &",
+                    nullptr) == 0);
   REQUIRE(sleep_until([&] { return fs::exists(box.dir / "same.h5.lock"); }, 20));
   CHECK(box.pdsim("run --quiet --force -o same.h5 " + slow, &log) == 1);
   CHECK(log.find("another pdsim is writing this output") != std::string::npos);
@@ -343,7 +334,7 @@ TEST_CASE("SIGKILL at random moments never loses a finished frequency") {
     const std::string run = "'" + std::string(PDSIM_BINARY) + "' run --quiet --threads 1 -o k.h5 " +
                             slow + " > /dev/null 2>&1 & sleep " +
                             std::to_string(delay_ms(rng) / 1000.0) + "; kill -9 $! 2>/dev/null";
-    box.pdsim_shell(run, nullptr);
+    box.shell(run, nullptr);
     usleep(100000);
     if (!fs::exists(box.dir / "k.h5.partial")) continue;  // killed before its first frequency
     ++caught;
@@ -362,12 +353,12 @@ TEST_CASE("a SIGKILLed sweep leaves no point process behind, each keeping its ch
   slow_deck(box, name, 100);  // a minute or more a point: it cannot finish by itself meanwhile
   std::ofstream(box.dir / name, std::ios::app) << "[sweep]\n\"structure.mass\" = [0.5, 0.6]\n";
   const std::string binary = "'" + std::string(PDSIM_BINARY) + "'";
-  REQUIRE(box.pdsim_shell(binary + " sweep " + name + " > sweep.txt 2>&1 & echo $! > sweep.pid",
-                          nullptr) == 0);
+  REQUIRE(box.shell(binary + " sweep " + name + " > sweep.txt 2>&1 & echo $! > sweep.pid",
+                    nullptr) == 0);
   // "[s]weep": the pattern must not match the shell that runs pgrep.
   const std::string points = "pgrep -f '[s]" + name.substr(1) + " --point' > /dev/null";
   REQUIRE(sleep_until([&] { return std::system(points.c_str()) == 0; }, 20));
-  box.pdsim_shell("kill -9 $(cat sweep.pid)", nullptr);
+  box.shell("kill -9 $(cat sweep.pid)", nullptr);
   // Each point gets SIGINT, keeps its finished frequencies and stops.
   CHECK(sleep_until([&] { return std::system(points.c_str()) != 0; }, 5));
   std::system(("pkill -f '[s]" + name.substr(1) + " --point'").c_str());  // never leave any

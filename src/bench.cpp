@@ -94,7 +94,7 @@ void add_bench_options(CLI::App& app, BenchOptions& o) {
   app.add_option("--jobs", o.jobs,
                  "also run this many copies of each scene at once, one thread each, as the points "
                  "of `pdsim sweep` run")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::Range(1, 4096));
   app.add_flag("--effects", o.effects, "time each optional effect against the full model");
   app.add_flag("--coupling", o.coupling,
                "time one coupling exchange (sdof, 20-element beam) per scheme and integrator");

@@ -22,6 +22,10 @@ std::optional<pdsim::Backend> parse_backend(const std::string& name) {
 
 }  // namespace
 
+// Ranges that print as what they mean ("not in range 1 to 4096"), not as 0 to 1.8e308.
+const CLI::Range kThreads(1, 4096);
+const CLI::Range kCount(1, 1'000'000'000);
+
 int main(int argc, char** argv) {
   CLI::App app{"pdsim: particle damper simulator (DEM particles coupled to a structure)"};
   app.set_version_flag("--version", std::string("pdsim ") + PDSIM_VERSION + " (" + PDSIM_GIT + ")");
@@ -32,22 +36,21 @@ int main(int argc, char** argv) {
   auto* run = app.add_subcommand("run", "run a deck and write its HDF5 results");
   run->add_option("deck", deck_path, "input deck (TOML)")->required();
   run->add_option("-o,--output", output, "output file (default: output.file of the deck)");
-  run->add_option("--threads", options.threads, "CPU threads (default: all)")
-      ->check(CLI::PositiveNumber);
+  run->add_option("--threads", options.threads, "CPU threads (default: all)")->check(kThreads);
   run->add_option("--jobs", options.jobs,
                   "runs side by side: independent frequencies, realisations (default: one per "
                   "core, the threads shared out)")
-      ->check(CLI::PositiveNumber);
+      ->check(kCount);
   run->add_option("--backend", backend, "cpu, cuda or auto (default: the deck's solver.backend)");
   run->add_flag("--resume", options.resume, "continue an interrupted run from its checkpoint");
   run->add_flag("--force", options.force, "overwrite an existing output file");
   run->add_flag("--quiet", options.quiet, "no progress lines");
   run->add_option("--stop-after", options.stop_after,
                   "stop after N frequencies, keeping the checkpoint for --resume")
-      ->check(CLI::PositiveNumber);
+      ->check(kCount);
   int point = 0;
   run->add_option("--point", point, "run one point of the deck's [sweep] table (1 to N)")
-      ->check(CLI::PositiveNumber);
+      ->check(kCount);
 
   pdsim::SweepOptions sweep_options;
   auto* sweep = app.add_subcommand(
@@ -56,11 +59,11 @@ int main(int argc, char** argv) {
   sweep->add_option("-o,--output", sweep_options.folder,
                     "folder for the points' files (default: the deck's output name + _sweep)");
   sweep->add_option("--jobs", sweep_options.jobs, "points run at once (default: one per core)")
-      ->check(CLI::PositiveNumber);
+      ->check(kCount);
   sweep
       ->add_option("--threads", sweep_options.threads,
                    "CPU threads per point (default: the cores shared among the jobs)")
-      ->check(CLI::PositiveNumber);
+      ->check(kThreads);
   sweep->add_option("--backend", backend, "cpu, cuda or auto (default: the deck's)");
   sweep->add_flag("--resume", sweep_options.resume,
                   "keep finished points and continue interrupted ones");
@@ -72,13 +75,20 @@ int main(int argc, char** argv) {
   auto* modes = app.add_subcommand("modes", "print the structure's natural frequencies");
   modes->add_option("deck", deck_path, "input deck (TOML)")->required();
   int mode_count = 10;
-  modes->add_option("-n,--count", mode_count, "how many modes")->check(CLI::PositiveNumber);
+  modes->add_option("-n,--count", mode_count, "how many modes")->check(kCount);
 
   pdsim::BenchOptions bench_options;
   auto* bench = app.add_subcommand("bench", "measure particle-steps per second");
   add_bench_options(*bench, bench_options);
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {  // --help, --version
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);  // prints the message and the usage
+    return 1;     // bad input, as for a deck (README)
+  }
   try {
     if (*bench) return pdsim::run_bench(bench_options);
     pdsim::Deck deck = pdsim::load_deck(deck_path);

@@ -79,7 +79,13 @@ TEST_CASE("bad decks exit 1 with the position, and write nothing") {
   }
   std::string log;
   CHECK(box.pdsim("run missing.toml", &log) == 1);
-  CHECK(box.pdsim("run", &log) != 0);  // CLI11 usage error, not a crash
+  // Command-line mistakes are bad input too: exit 1 with a plain message (CLI11 said 105/106).
+  CHECK(box.pdsim("run", &log) == 1);
+  CHECK(box.pdsim("", &log) == 1);
+  CHECK(log.find("A subcommand is required") != std::string::npos);
+  CHECK(box.pdsim("run --threads 0 missing.toml", &log) == 1);
+  CHECK(log.find("--threads: Value 0 not in range 1 to 4096") != std::string::npos);
+  CHECK(box.pdsim("--version", &log) == 0);
 }
 
 TEST_CASE("a run writes its file with provenance and refuses to overwrite it") {

@@ -89,10 +89,12 @@ std::size_t edit_distance(std::string_view a, std::string_view b) {
 
 using Names = std::initializer_list<std::string_view>;
 
-// The valid name within 3 edits of `given`, if any.
-std::string_view closest(std::string_view given, Names valid) {
+// The valid name nearest to a misspelt one, or "" when none is near enough to be a typo
+// (at most `most` edits and a third of its length plus one: 'size' is not a typo of 'shape'),
+// so that the message lists the valid names instead of a wrong guess.
+std::string_view closest(std::string_view given, Names valid, std::size_t most = 3) {
   std::string_view best;
-  std::size_t best_distance = 4;
+  std::size_t best_distance = 1 + std::min(most, 1 + given.size() / 3);
   for (std::string_view name : valid) {
     const std::size_t d = edit_distance(given, name);
     if (d < best_distance) {
@@ -140,7 +142,9 @@ class Table {
     for (const auto& entry : table_) {
       const toml::key& k = entry.first;
       if (std::find(valid.begin(), valid.end(), k.str()) != valid.end()) continue;
-      const std::string_view best = closest(k.str(), valid);
+      // With a context ("for kind = ..."), a key far from every valid one most likely belongs
+      // to another kind ('duration' on a stepped sine): only a near typo is guessed.
+      const std::string_view best = closest(k.str(), valid, context.empty() ? 3 : 2);
       std::string list;
       for (std::string_view name : valid) list += (list.empty() ? "" : ", ") + std::string(name);
       throw InputError(to_pos(pos_.file, k.source()), key(k.str()),

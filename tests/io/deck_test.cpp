@@ -249,6 +249,14 @@ TEST_CASE("negative mass: file, line:column, key and expectation") {
 }
 
 TEST_CASE("misspelt key: suggestion within 3 edits, else the valid keys") {
+  // A key of another kind is not a typo of a near name: the valid keys are listed.
+  check_error(kSdof +
+                  "[excitation]\nkind = \"stepped_sine\"\namplitude = 1\n"
+                  "frequencies = [15]\nduration = 2\n",
+              "9:1: 'excitation.duration': ",
+              "unknown key for kind = \"stepped_sine\"; valid here: kind, input, amplitude");
+  check_error(kSdof + kSine + "[[damper]]\ncontainer = { shape = \"cylinder\", size = [1, 1] }\n",
+              "11:35: 'damper[0].container.size': ", "valid here: shape, radius, height");
   const std::string path = kDecks + "bad_misspelt_key.toml";
   CHECK(load_error(path) == path +
                                 ":5:3: 'structure.stifness': unknown key for kind = \"sdof\"; "

@@ -244,7 +244,7 @@ class Table {
     const double scale = std::max({std::fabs(v->x), std::fabs(v->y), std::fabs(v->z)});
     if (scale == 0) fail(k, "expected " + expected + ", got [0, 0, 0]");
     if (!std::isfinite(scale)) fail(k, "expected " + expected + " (finite)");
-    const Vec3 w = (1.0 / scale) * *v;
+    const Vec3 w{v->x / scale, v->y / scale, v->z / scale};  // 1 / a subnormal scale is inf
     return (1.0 / norm(w)) * w;
   }
 

@@ -219,13 +219,15 @@ void sync_folder(const std::string& path) {
   }
 }
 
-// Writes `bytes` to a temporary file beside `path`, flushes it to the disk and renames it over
-// `path`. Whatever fails (a full disk, a kill), `path` holds either its old contents or the new
-// ones, never a mixture.
-void write_atomically(const std::string& path, const std::vector<char>& bytes) {
+// Writes `bytes` to a temporary file beside `path` and flushes it to the disk; returns its
+// name. A SIGKILL here leaves at most that temporary file behind, never a half-written `path`.
+std::string write_temporary(const std::string& path, const std::vector<char>& bytes) {
   const std::string temporary = path + ".tmp-" + std::to_string(getpid());
   const int fd = open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) fail_io(temporary, "create", errno);
+  if (fd < 0) {
+    const int error = errno;
+    fail_io(temporary, "create", error);
+  }
   auto give_up = [&](const std::string& what, int error) {
     close(fd);
     unlink(temporary.c_str());
@@ -233,8 +235,9 @@ void write_atomically(const std::string& path, const std::vector<char>& bytes) {
   };
   for (std::size_t done = 0; done < bytes.size();) {
     const ssize_t n = write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) give_up("write", errno);
+    const int error = errno;
+    if (n < 0 && error == EINTR) continue;
+    if (n <= 0) give_up("write", n < 0 ? error : ENOSPC);
     done += static_cast<std::size_t>(n);
   }
   if (fsync(fd) != 0) give_up("flush to the disk", errno);
@@ -243,12 +246,20 @@ void write_atomically(const std::string& path, const std::vector<char>& bytes) {
     unlink(temporary.c_str());
     fail_io(path, "write", error);
   }
-  if (rename(temporary.c_str(), path.c_str()) != 0) {
-    const int error = errno;
-    unlink(temporary.c_str());
-    fail_io(path, "rename " + temporary + " to it", error);
-  }
-  sync_folder(path);
+  return temporary;
+}
+
+// Renames `from` to `to`; with `replace` false only where nothing is at `to` (RENAME_NOREPLACE,
+// or a hard link on file systems without it, such as NFS: both refuse atomically). Returns 0
+// or the errno (EEXIST: something is at `to`).
+int move_into_place(const std::string& from, const std::string& to, bool replace) {
+  if (replace) return rename(from.c_str(), to.c_str()) == 0 ? 0 : errno;
+  if (renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), RENAME_NOREPLACE) == 0) return 0;
+  const int error = errno;
+  if (error != EINVAL && error != ENOSYS && error != EOPNOTSUPP) return error;
+  if (link(from.c_str(), to.c_str()) != 0) return errno;
+  unlink(from.c_str());
+  return 0;
 }
 
 }  // namespace
@@ -256,18 +267,34 @@ void write_atomically(const std::string& path, const std::vector<char>& bytes) {
 void write_results(const std::string& path, const Results& results, bool complete, bool replace) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   const std::string partial = path + ".partial";
-  write_atomically(partial, file_image(path, results, complete));
-  if (!complete) return;
-  const int moved =
-      replace ? rename(partial.c_str(), path.c_str())
-              : renameat2(AT_FDCWD, partial.c_str(), AT_FDCWD, path.c_str(), RENAME_NOREPLACE);
-  const int error = moved != 0 ? errno : 0;
-  if (error == EEXIST)
+  const std::string target = complete ? path : partial;
+  const std::string temporary = write_temporary(target, file_image(path, results, complete));
+  // A complete file goes straight to `path`, so that the checkpoint stays resumable until the
+  // finished file is in place; then the checkpoint goes.
+  const int error = move_into_place(temporary, target, replace || !complete);
+  if (error == EEXIST) {
+    // Keep the finished results where the message says: in place of the checkpoint.
+    const bool kept = rename(temporary.c_str(), (path + ".finished").c_str()) == 0;
     throw std::runtime_error(path +
                              ": appeared while pdsim ran (another program wrote it) and "
-                             "is not overwritten without --force; the results are in " +
-                             partial);
-  if (error != 0) fail_io(path, "rename " + partial + " to it", error);
+                             "is not overwritten without --force" +
+                             (kept ? "; the results are in " + path + ".finished" : ""));
+  }
+  if (error != 0) {
+    unlink(temporary.c_str());
+    fail_io(target, "rename " + temporary + " to it", error);
+  }
+  sync_folder(target);
+  if (complete) unlink(partial.c_str());
+}
+
+void write_unfinished(const std::string& path, const Results& results) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const std::string temporary = write_temporary(path, file_image(path, results, false));
+  if (const int error = move_into_place(temporary, path, true); error != 0) {
+    unlink(temporary.c_str());
+    fail_io(path, "rename " + temporary + " to it", error);
+  }
   sync_folder(path);
 }
 

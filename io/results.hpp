@@ -146,10 +146,15 @@ struct Results {
 // (which a complete write then removes). Each write replaces the old file whole, through a
 // flushed temporary file and a rename: a crash, a kill or a full disk leaves the previous file
 // intact, and an interrupted run never leaves a file that looks complete. With replace = false
-// a complete write refuses to overwrite a file that appeared at `path` meanwhile. Throws
+// a complete write refuses to overwrite a file that appeared at `path` meanwhile (the results
+// then go to "<path>.finished"). Throws
 // std::runtime_error naming the path on any failure (HDF5 or the disk).
 void write_results(const std::string& path, const Results& results, bool complete,
                    bool replace = true);
+
+// Writes `results` to exactly `path` as an unfinished file (/meta/complete = 0), replacing it
+// whole (what a failed run had computed). Throws std::runtime_error naming the path.
+void write_unfinished(const std::string& path, const Results& results);
 
 // An advisory lock on "<path>.lock", held while a run writes `path`: a second pdsim writing the
 // same output is refused at once (std::runtime_error naming the path) instead of overwriting

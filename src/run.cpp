@@ -185,7 +185,9 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
   }
   // Fills that agree to within about the tolerance are one state for the question asked.
   const double tolerance = settle.tolerance;
-  const Combined amplitude = combine_runs(a, 0.5 * tolerance * std::abs(mean));
+  double typical = 0;  // the mean amplitude, the scale of the tolerance
+  for (const RunMean& run : a) typical += run.mean / double(a.size());
+  const Combined amplitude = combine_runs(a, 0.5 * tolerance * typical);
   const Combined phase = combine_runs(q, 0.5 * tolerance);
   const MeanInterval energy = combine_runs(e, 0).interval;
   const double size = amplitude.interval.mean, amplitude_ci = amplitude.interval.half_width;
@@ -341,7 +343,7 @@ class Driver {
 
   Results run(const std::function<void(const Results&)>& checkpoint, int stop_after) {
     started_ = Clock::now();
-    g_stop_runs = false;
+    g_stop_runs = g_interrupted != 0;  // an interrupt before the start stops it at once
     checkpoint_ = checkpoint;
     stop_after_ = stop_after;
     const ExcitationSpec& x = deck_.excitation;
@@ -357,7 +359,7 @@ class Driver {
           points_[0][0] = run.run_frequency(x.frequency, FrequencyStart::carried);
         }
       } catch (const SimulationError& e) {
-        fail(run, e);
+        fail(run, 0, e);
       }
       results_.timeseries = run.timeseries();
       results_.energy = run.energy();
@@ -442,14 +444,14 @@ class Driver {
   // Also keeps what the failed run computed (its time series up to the failure, the finished
   // frequencies) for failed(): a run that blows up in its only segment would otherwise leave
   // nothing but the particle dump.
-  [[noreturn]] void fail(const FrequencyRun& run, const SimulationError& e) {
+  [[noreturn]] void fail(const FrequencyRun& run, std::size_t r, const SimulationError& e) {
     if (g_interrupted || dump_path_.empty() || std::string(e.what()) == "interrupted") throw;
     run.system().dump(dump_path_);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!failed_) {
         Results& f = failed_.emplace(results_);
-        if (!independent()) f.timeseries = run.timeseries(), f.energy = run.energy();
+        if (!independent() && r == 0) f.timeseries = run.timeseries(), f.energy = run.energy();
         add_rows(f);
         provenance(f);
         f.meta_text["failure"] = e.what();
@@ -507,7 +509,7 @@ class Driver {
       try {
         reports_[r] = run.settle_bed();
       } catch (const SimulationError& e) {
-        fail(run, e);
+        fail(run, r, e);
       }
       beds_[r] = run.save();
       std::lock_guard<std::mutex> lock(mutex_);
@@ -570,7 +572,7 @@ class Driver {
         try {
           point = run.run_frequency(frequencies_[i], deck_.excitation.start);
         } catch (const SimulationError& e) {
-          fail(run, e);
+          fail(run, r, e);
         }
         done += 1;
         progress.update(k, done, frequencies_[i]);
@@ -844,7 +846,16 @@ Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
 // Free space below which a run warns before it starts, bytes.
 constexpr std::uintmax_t kLowSpace = 64u << 20;
 
+// SIGINT handled from the start of a run (a sweep's point may get it while it sets up) until
+// its end.
+struct InterruptScope {
+  void (*previous)(int);
+  InterruptScope() : previous(std::signal(SIGINT, on_interrupt)) {}
+  ~InterruptScope() { std::signal(SIGINT, previous); }
+};
+
 RunReport run_deck(const Deck& deck, const RunOptions& options) {
+  const InterruptScope interrupts;
   const std::string path = output_path(deck, options);
   const std::string partial = path + ".partial";
   namespace fs = std::filesystem;
@@ -855,15 +866,15 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   // Everything about the output that can be known before computing is checked first.
   if (path.empty() || path.find('\0') != std::string::npos)
     throw InputError("output file: expected a path without NUL characters, got '" + path + "'");
-  if (fs::is_directory(path))
+  std::error_code ignored;  // a path that cannot be examined is treated as absent
+  if (fs::is_directory(path, ignored))
     throw InputError(path + ": is a folder; expected the path of an output file");
-  if (fs::exists(path) && !options.force)
+  if (fs::exists(path, ignored) && !options.force)
     throw InputError(path + ": output file exists; use --force to overwrite it");
   const fs::path folder = fs::path(path).parent_path();
-  if (deck.point > 0 && !folder.empty()) fs::create_directories(folder);
-  if (!folder.empty() && !fs::is_directory(folder))
+  if (deck.point > 0 && !folder.empty()) fs::create_directories(folder, ignored);
+  if (!folder.empty() && !fs::is_directory(folder, ignored))
     throw InputError(path + ": the folder " + folder.string() + " does not exist");
-  std::error_code ignored;
   if (access(folder.empty() ? "." : folder.c_str(), W_OK | X_OK) != 0)
     throw InputError(path + ": the folder " + (folder.empty() ? "." : folder.string()) +
                      " is not writable");
@@ -894,18 +905,15 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
       throw InputError(partial + ": holds no checkpoint; run it anew without --resume");
     driver.resume_from(saved);
   }
-  g_interrupted = 0;
-  auto previous = std::signal(SIGINT, on_interrupt);
   Results results;
   try {
     results = driver.run([&](const Results& snapshot) { write_results(path, snapshot, false); },
                          options.stop_after);
   } catch (const SimulationError& e) {
-    std::signal(SIGINT, previous);
     if (const Results* failed = driver.failed()) {
       const std::string kept = path + ".failed.h5";
       try {
-        write_results(kept, *failed, true, true);
+        write_unfinished(kept, *failed);
       } catch (const std::exception& unwritten) {
         throw SimulationError(std::string(e.what()) + "\n(not kept: " + unwritten.what() + ")");
       }
@@ -919,7 +927,6 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
                             ", continue with --resume");
     throw;
   }
-  std::signal(SIGINT, previous);
   if (driver.stopped())
     return {partial, "stopped after " + std::to_string(driver.finished()) +
                          " frequencies as asked; continue with --resume"};

@@ -171,7 +171,8 @@ Combined combine_runs(const std::vector<RunMean>& runs, double resolution) {
     weights += w;
     weighted += w * means[std::size_t(k)];
   }
-  const double centre = std::isfinite(weights) ? weighted / weights : mean_of(means);
+  // Runs without an interval of their own weigh nothing; when no run has one, plain mean.
+  const double centre = weights > 0 && std::isfinite(weights) ? weighted / weights : mean_of(means);
   double q = 0;
   for (int k = 0; k < r; ++k) {
     const double d = means[std::size_t(k)] - centre;
@@ -183,8 +184,9 @@ Combined combine_runs(const std::vector<RunMean>& runs, double resolution) {
   const MeanInterval spread = independent_mean_interval(means);
   const double pooled_width = student_t975(dof) * std::sqrt(pooled) / r;
   if (q <= chi2) {  // one state: the pooled interval, wide enough to hold every run's mean
-    const auto [low, high] = std::minmax_element(means.begin(), means.end());
-    return {{spread.mean, std::max(pooled_width, 0.5 * (*high - *low))}, true};
+    double farthest = 0;
+    for (double m : means) farthest = std::max(farthest, std::fabs(m - spread.mean));
+    return {{spread.mean, std::max(pooled_width, farthest)}, true};
   }
   // The runs' means scatter with their own noise as well as the regimes: their Student-t
   // interval holds both (a run without an interval of its own still counts).

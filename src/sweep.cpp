@@ -11,6 +11,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -211,7 +212,12 @@ void follow_sweep() {
   if (parent == nullptr) return;
   prctl(PR_SET_PDEATHSIG, SIGINT);
   // The sweep may have died before the request: then the parent is already someone else.
-  if (std::to_string(getppid()) != parent) raise(SIGINT);
+  if (std::to_string(getppid()) != parent) {
+    std::fprintf(stderr,
+                 "simulation failed: interrupted: the sweep that started this point is "
+                 "gone\n");
+    std::exit(130);
+  }
 }
 
 int run_sweep(const Deck& deck, const SweepOptions& o) {

@@ -331,18 +331,22 @@ TEST_CASE("SIGKILL at random moments never loses a finished frequency") {
   REQUIRE(box.pdsim("run --quiet --threads 1 -o whole.h5 " + slow) == 0);
   const pdsim::Results whole = pdsim::read_results((box.dir / "whole.h5").string());
   std::mt19937 rng(17);
-  std::uniform_int_distribution<int> delay_ms(200, 3000);
+  std::uniform_int_distribution<int> delay_ms(0, 1500);
   int caught = 0;
   for (int trial = 0; trial < 8; ++trial) {
     CAPTURE(trial);
     fs::remove(box.dir / "k.h5");
     fs::remove(box.dir / "k.h5.partial");
-    const std::string run = "'" + std::string(PDSIM_BINARY) + "' run --quiet --threads 1 -o k.h5 " +
-                            slow + " > /dev/null 2>&1 & sleep " +
-                            std::to_string(delay_ms(rng) / 1000.0) + "; kill -9 $! 2>/dev/null";
+    // Killed at a random moment after its first checkpoint (so on any machine speed), often
+    // during a later checkpoint's write.
+    const std::string run =
+        "'" + std::string(PDSIM_BINARY) + "' run --quiet --threads 1 -o k.h5 " + slow +
+        " > /dev/null 2>&1 & for i in $(seq 400); do [ -e k.h5.partial ] && break; sleep 0.05; "
+        "done; sleep " +
+        std::to_string(delay_ms(rng) / 1000.0) + "; kill -9 $! 2>/dev/null; wait";
     box.shell(run, nullptr);
-    usleep(100000);
-    if (!fs::exists(box.dir / "k.h5.partial")) continue;  // killed before its first frequency
+    if (fs::exists(box.dir / "k.h5")) continue;  // finished before the kill
+    REQUIRE(fs::exists(box.dir / "k.h5.partial"));
     ++caught;
     // Whatever the moment, the checkpoint is whole and resumes to the same numbers.
     const pdsim::Results kept = pdsim::read_results((box.dir / "k.h5.partial").string());
@@ -359,11 +363,17 @@ TEST_CASE("a SIGKILLed sweep leaves no point process behind, each keeping its ch
   slow_deck(box, name, 100);  // a minute or more a point: it cannot finish by itself meanwhile
   std::ofstream(box.dir / name, std::ios::app) << "[sweep]\n\"structure.mass\" = [0.5, 0.6]\n";
   const std::string binary = "'" + std::string(PDSIM_BINARY) + "'";
-  REQUIRE(box.shell(binary + " sweep " + name + " > sweep.txt 2>&1 & echo $! > sweep.pid",
+  REQUIRE(box.shell(binary + " sweep --jobs 2 " + name + " > sweep.txt 2>&1 & echo $! > sweep.pid",
                     nullptr) == 0);
   // "[s]weep": the pattern must not match the shell that runs pgrep.
   const std::string points = "pgrep -f '[s]" + name.substr(1) + " --point' > /dev/null";
-  REQUIRE(sleep_until([&] { return std::system(points.c_str()) == 0; }, 20));
+  // Both points running, past their set-up (each holds its output's lock).
+  REQUIRE(sleep_until(
+      [&] {
+        return fs::exists(box.dir / "tiny_sweep" / "p001.h5.lock") &&
+               fs::exists(box.dir / "tiny_sweep" / "p002.h5.lock");
+      },
+      20));
   box.shell("kill -9 $(cat sweep.pid)", nullptr);
   // Each point gets SIGINT, keeps its finished frequencies and stops.
   CHECK(sleep_until([&] { return std::system(points.c_str()) != 0; }, 5));

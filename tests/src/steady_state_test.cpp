@@ -5,6 +5,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "src/common.hpp"
@@ -15,6 +16,7 @@ using namespace pdsim;
 namespace {
 
 const std::complex<double> kTruth(1.2e-3, -0.5e-3);  // m, a first harmonic
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 // AR(1) noise e_k = phi e_{k-1} + sqrt(1 - phi^2) sigma w_k on both components (stationary from
 // the first value), relative scatter `sigma` of |kTruth|.
@@ -223,4 +225,14 @@ TEST_CASE("realisations that agree pool their intervals, ones that disagree give
   CHECK(close.interval.half_width == doctest::Approx(0.5e-4));  // holds both runs' means
   CHECK_FALSE(combine_runs({{1.0, 0, 9}, {1.01, 0, 9}}, 1e-3).consistent);
   CHECK(combine_runs({{1.0, 0, 9}, {1.0, 0, 9}}, 0).interval.half_width == 0);
+  // Runs without an interval of their own (one batch): nothing to pool, no NaN, no verdict of
+  // disagreement from nothing.
+  const Combined none = combine_runs({{1.0, kInfinity, 0}, {1.001, kInfinity, 0}}, 1e-2);
+  CHECK(none.consistent);
+  CHECK(none.interval.mean == doctest::Approx(1.0005));
+  CHECK(std::isinf(none.interval.half_width));
+  // Three runs: the pooled interval holds the farthest mean from their mean.
+  const Combined three = combine_runs({{0.0, 0, 9}, {0.0, 0, 9}, {1e-3, 0, 9}}, 1e-2);
+  CHECK(three.consistent);
+  CHECK(three.interval.half_width >= 2e-3 / 3 - 1e-15);
 }

@@ -889,6 +889,14 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   } catch (const std::runtime_error& e) {
     throw InputError(e.what());
   }
+  // Temporary files a killed run left behind (OUT.tmp-PID, OUT.partial.tmp-PID): with the lock
+  // held, no other pdsim is writing them.
+  const std::string stem = fs::path(path).filename().string();
+  for (const auto& entry : fs::directory_iterator(folder.empty() ? "." : folder, ignored)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(stem + ".tmp-", 0) == 0 || name.rfind(stem + ".partial.tmp-", 0) == 0)
+      fs::remove(entry.path(), ignored);
+  }
   const Scene scene = build_scene(deck, options.threads, options.backend);
   if (!scene.warning.empty()) std::cerr << "warning: " << scene.warning << "\n";
   Plan plan = plan_run(deck, scene, options.threads, options.jobs, options.backend);

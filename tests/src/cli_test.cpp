@@ -354,8 +354,12 @@ TEST_CASE("SIGKILL at random moments never loses a finished frequency") {
     // Whatever the moment, the checkpoint is whole and resumes to the same numbers.
     const pdsim::Results kept = pdsim::read_results((box.dir / "k.h5.partial").string());
     CHECK(kept.frf.frequency.size() <= 5);
+    std::ofstream(box.dir / "k.h5.partial.tmp-999999") << "left by a kill mid-write";
     REQUIRE(box.pdsim("run --quiet --threads 1 -o k.h5 --resume " + slow) == 0);
     CHECK(pdsim::read_results((box.dir / "k.h5").string()).frf.amplitude == whole.frf.amplitude);
+    // A temporary file a kill left mid-write is cleared by the next run on that output.
+    for (const auto& entry : fs::directory_iterator(box.dir))
+      CHECK(entry.path().filename().string().find(".tmp-") == std::string::npos);
   }
   CHECK(caught >= 3);
 }

@@ -5,7 +5,6 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -54,7 +53,6 @@ std::string show_real(double value) {
   return text;
 }
 
-// What the user wrote, for "expected X, got Y".
 // A value as quoted in a message: long ones cut, so that an error line stays a line.
 std::string clipped(const std::string& text) {
   constexpr std::size_t kShown = 60;
@@ -62,6 +60,7 @@ std::string clipped(const std::string& text) {
   return text.substr(0, kShown) + "... (" + std::to_string(text.size()) + " characters)";
 }
 
+// What the user wrote, for "expected X, got Y".
 std::string describe(const toml::node& node) {
   if (auto v = node.as_floating_point()) return show_real(v->get());
   if (auto v = node.as_integer()) return std::to_string(v->get());
@@ -756,16 +755,10 @@ std::string sweep_name(const std::string& key) {
 }
 
 // A node as TOML writes it (values of a sweep, for names and tables).
-// A value as a reader would write it: floats in the fewest digits that read back the same
-// (0.8, not toml++'s 0.80000000000000004), arrays element by element.
+// A value as a reader would write it: floats by show_real (0.8, not toml++'s
+// 0.80000000000000004), arrays element by element.
 std::string written(const toml::node& node) {
-  if (const auto* f = node.as_floating_point()) {
-    char buffer[64];
-    const auto end = std::to_chars(buffer, buffer + sizeof buffer, f->get()).ptr;
-    std::string text(buffer, end);
-    if (text.find_first_of(".eniEN") == std::string::npos) text += ".0";
-    return text;
-  }
+  if (const auto* f = node.as_floating_point()) return show_real(f->get());
   if (const auto* a = node.as_array()) {
     std::string text = "[";
     for (std::size_t i = 0; i < a->size(); ++i) text += (i ? ", " : "") + written((*a)[i]);

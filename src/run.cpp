@@ -875,12 +875,11 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   if (deck.point > 0 && !folder.empty()) fs::create_directories(folder, ignored);
   if (!folder.empty() && !fs::is_directory(folder, ignored))
     throw InputError(path + ": the folder " + folder.string() + " does not exist");
-  if (access(folder.empty() ? "." : folder.c_str(), W_OK | X_OK) != 0)
-    throw InputError(path + ": the folder " + (folder.empty() ? "." : folder.string()) +
-                     " is not writable");
+  const fs::path place = folder.empty() ? fs::path(".") : folder;
+  if (access(place.c_str(), W_OK | X_OK) != 0)
+    throw InputError(path + ": the folder " + place.string() + " is not writable");
   // A full disk costs no finished work (the last checkpoint survives), but say it early.
-  if (const auto space = fs::space(folder.empty() ? "." : folder, ignored);
-      space.available < kLowSpace)
+  if (const auto space = fs::space(place, ignored); space.available < kLowSpace)
     std::cerr << "warning: only " << space.available / (1 << 20) << " MiB free for " << path
               << "; a full disk stops the run (exit 2, the last checkpoint kept)\n";
   std::optional<OutputLock> lock;
@@ -892,7 +891,7 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   // Temporary files a killed run left behind (OUT.tmp-PID, OUT.partial.tmp-PID): with the lock
   // held, no other pdsim is writing them.
   const std::string stem = fs::path(path).filename().string();
-  for (const auto& entry : fs::directory_iterator(folder.empty() ? "." : folder, ignored)) {
+  for (const auto& entry : fs::directory_iterator(place, ignored)) {
     const std::string name = entry.path().filename().string();
     if (name.rfind(stem + ".tmp-", 0) == 0 || name.rfind(stem + ".partial.tmp-", 0) == 0)
       fs::remove(entry.path(), ignored);

@@ -39,7 +39,7 @@ struct FrfTable {  // one row per stepped-sine frequency
   std::vector<double> frequency, amplitude, amplitude_ci, phase, phase_ci, rms, peak;
   std::vector<int> periods, periods_discarded, converged, realisations, interval;
   std::vector<double> dissipated_energy, dissipated_energy_ci, dissipated_normal,
-      dissipated_tangential;
+      dissipated_tangential, dissipated_rolling;
 };
 template <class T, class F>
 void frf_columns(T& t, F&& f) {
@@ -68,6 +68,7 @@ void frf_columns(T& t, F&& f) {
   f("dissipated_normal", t.dissipated_normal, "J", "per period, normal contact damping");
   f("dissipated_tangential", t.dissipated_tangential, "J",
     "per period, friction and tangential damping");
+  f("dissipated_rolling", t.dissipated_rolling, "J", "per period, rolling resistance");
 }
 
 struct PrescribedTable {  // one row per prescribed-motion frequency

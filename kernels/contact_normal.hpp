@@ -19,10 +19,6 @@ struct NormalResponse {
 struct LinearNormal {
   static constexpr const char* name = "linear";
   static constexpr double kEnergyRatio = 0.5;  // spring energy / (elastic force x overlap)
-  static constexpr bool kVaryingStiffness = false;
-  PDSIM_HD static double tangent_stiffness(double, double, bool, const ContactParams& p) {
-    return p.tangential_ratio * p.linear_stiffness;
-  }
   PDSIM_HD static NormalResponse respond(double overlap, double, double mass_eff, bool,
                                          const ContactParams& p) {
     const double k = p.linear_stiffness;
@@ -39,11 +35,6 @@ struct LinearNormal {
 struct HertzNormal {
   static constexpr const char* name = "hertz";
   static constexpr double kEnergyRatio = 0.4;  // U = 8/15 E* sqrt(R*) d^2.5 = 2/5 Fn d
-  static constexpr bool kVaryingStiffness = true;
-  PDSIM_HD static double tangent_stiffness(double overlap, double radius_eff, bool wall,
-                                           const ContactParams& p) {
-    return 8.0 * (wall ? p.shear_modulus_pw : p.shear_modulus_pp) * sqrt(radius_eff * overlap);
-  }
   PDSIM_HD static NormalResponse respond(double overlap, double radius_eff, double mass_eff,
                                          bool wall, const ContactParams& p) {
     const double contact_radius = sqrt(radius_eff * overlap);

@@ -107,22 +107,13 @@ constexpr int pair_doubles() {
   return V::kPolydisperse || V::kRolling ? 9 : 6;
 }
 
-// Energy the dissipative elements of contacts take out in a step, J, by mechanism: the normal
-// dashpot; the tangential dashpot, Coulomb cap or directional friction; rolling resistance.
-// With it the energy in the contacts' springs at the start of the step (see contact()), and
-// the tangential springs' 1/2 kt s^2 before and after the step's update: a contact that ends
-// drops its history and the energy in it, which the coupled system tallies from these.
-struct Dissipation {
-  double normal = 0, tangential = 0, rolling = 0, elastic = 0, spring_before = 0, spring_after = 0;
-};
-
 // What one particle adds to the step totals (reduced by the launcher in a fixed order).
 struct ParticleContribution {
   Vec3 wall_force;   // on the container
   Vec3 wall_torque;  // on the container, about its centre (Rotating variants only)
   double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;  // J
   double elastic = 0;  // J, in the contact springs at the start of the step (energy ledger)
-  double spring_before = 0, spring_after = 0;  // J, tangential springs (see Dissipation)
+  double spring_in = 0, spring_out = 0;  // J, tangential springs (see Dissipation)
   double kinetic = 0;
   double speed_sq = 0;  // largest |v|^2 at the end of the step (bounds the drift since a rebuild)
   int flags = 0;
@@ -135,8 +126,8 @@ PDSIM_HD void accumulate(ParticleContribution& sum, const ParticleContribution& 
   sum.dissipated_tangential += c.dissipated_tangential;
   sum.dissipated_rolling += c.dissipated_rolling;
   sum.elastic += c.elastic;
-  sum.spring_before += c.spring_before;
-  sum.spring_after += c.spring_after;
+  sum.spring_in += c.spring_in;
+  sum.spring_out += c.spring_out;
   sum.kinetic += c.kinetic;
   sum.speed_sq = max_of(sum.speed_sq, c.speed_sq);
   sum.flags |= c.flags;
@@ -147,8 +138,8 @@ PDSIM_HD void add_dissipation(ParticleContribution& sum, const Dissipation& d) {
   sum.dissipated_tangential += d.tangential;
   sum.dissipated_rolling += d.rolling;
   sum.elastic += d.elastic;
-  sum.spring_before += d.spring_before;
-  sum.spring_after += d.spring_after;
+  sum.spring_in += d.spring_in;
+  sum.spring_out += d.spring_out;
 }
 
 PDSIM_HD Vec3 load3(const double* a, int k) {
@@ -192,25 +183,8 @@ PDSIM_HD ContactOutcome contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 ome
   // 1/2 k x_prev . x with x_prev = x - dt v (contact_tangential.hpp): it goes with the kinetic
   // energy of the input velocities. Exact for a linear normal spring, O(dt^2) otherwise.
   dissipated.elastic += V::Normal::kEnergyRatio * r.elastic * overlap + 0.5 * dt * r.elastic * vn;
-  [[maybe_unused]] Vec3 history_in{};
-  if constexpr (V::Tangential::kHistory) history_in = *history;
   const Vec3 ft = V::Tangential::force(history, normal, vt, r, fn, kTangentMassRatio * mass_eff, dt,
-                                       p, dissipated.tangential);
-  if constexpr (V::Tangential::kHistory) {
-    const Vec3 s = *history;
-    dissipated.elastic += 0.5 * r.tangent_stiffness * dot(s, s - dt * vt);
-    // Mindlin's kt grows with the overlap: held at a displacement s, the spring gains
-    // 1/2 (kt - kt_prev) s^2 while loading and loses it unloading, with no force doing that
-    // work. It is the history law's own gain or loss, tallied with its dissipation (the
-    // previous overlap is d + dt vn; the stored s keeps its length when projected).
-    double previous = r.tangent_stiffness;
-    if constexpr (V::Normal::kVaryingStiffness)
-      previous = V::Normal::tangent_stiffness(max_of(overlap + dt * vn, 0.0), radius_eff, wall, p);
-    const double before = 0.5 * previous * dot(history_in, history_in);
-    dissipated.tangential -= 0.5 * r.tangent_stiffness * dot(history_in, history_in) - before;
-    dissipated.spring_before += before;
-    dissipated.spring_after += 0.5 * r.tangent_stiffness * dot(s, s);
-  }
+                                       p, dissipated);
   ContactOutcome out{fn * normal + ft, cross(-radius * normal, ft),
                      cross(-partner_radius * normal, ft)};
   if constexpr (V::kRolling) {

@@ -199,10 +199,9 @@ Energy CoupledSystem::state_energy() const {
   return e;
 }
 
-void CoupledSystem::account_ended_contacts(std::size_t k, const StepTotals& totals,
-                                           double& tangential) {
-  tangential += spring_energy_[k] - totals.spring_before;
-  pending_spring_energy_[k] = totals.spring_after;
+void CoupledSystem::account_springs(std::size_t k, const StepTotals& totals, double& tangential) {
+  tangential += spring_energy_[k] - totals.spring_in;
+  pending_spring_energy_[k] = totals.spring_out;
 }
 
 // Runs one DEM step of every damper with the container at displacement u_k(t) + lead * u_dot_k,
@@ -229,7 +228,7 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
     last_.work_external -= force_along[k] * drive_.base_velocity(t) * dt_;
     last_.dissipated_normal += totals.dissipated_normal;
     last_.dissipated_tangential += totals.dissipated_tangential;
-    account_ended_contacts(k, totals, last_.dissipated_tangential);
+    account_springs(k, totals, last_.dissipated_tangential);
     last_.dissipated_rolling += totals.dissipated_rolling;
     last_.contact_elastic += totals.elastic;
     last_.particle_kinetic += totals.kinetic;
@@ -260,7 +259,7 @@ void CoupledSystem::step_prescribed() {
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
     if (totals.flags) check(totals, k, time_, kin.position);
     engines_[k]->accept();
-    account_ended_contacts(k, totals, last_.dissipated_tangential);
+    account_springs(k, totals, last_.dissipated_tangential);
     spring_energy_[k] = pending_spring_energy_[k];
     displacement_[k] = u;
     force_mean_[k] = dot(totals.wall_force, m.axis);
@@ -419,7 +418,7 @@ double CoupledSystem::settle_step(double dt) {
     const StepTotals& totals = engines_[k]->compute(kin, dt);
     if (totals.flags) check(totals, k, time_, kin.position);
     engines_[k]->accept();
-    spring_energy_[k] = totals.spring_after;
+    spring_energy_[k] = totals.spring_out;
     speed_sq = std::max(speed_sq, totals.speed_sq);
     particle_steps_ += engines_[k]->count();
   }

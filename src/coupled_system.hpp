@@ -144,10 +144,10 @@ class CoupledSystem {
   std::vector<double> force_, force_sum_, guess_, torque_, torque_sum_, pending_torque_;
   std::vector<double> displacement_, force_mean_;  // per damper, see damper_displacements()
   // Per damper, J: the tangential springs' energy after the last accepted DEM step, and after
-  // the computed one (tight). What of it the next step does not carry on (StepTotals::
-  // spring_before) left with contacts that ended, and is tallied as friction's.
+  // the computed one (tight). What of it the next step does not carry in (StepTotals::
+  // spring_in: ended contacts, Mindlin's stiffness change) is tallied as friction's.
   std::vector<double> spring_energy_, pending_spring_energy_;
-  void account_ended_contacts(std::size_t k, const StepTotals& totals, double& tangential);
+  void account_springs(std::size_t k, const StepTotals& totals, double& tangential);
   std::vector<ContainerKinematics> kinematics_at_configure_;  // until the next step
   Eigen::VectorXd load_, damper_load_, q_start_, v_start_, damping_force_;
   Eigen::VectorXd base_inertia_;  // M r, N per m/s^2 of base acceleration

@@ -39,7 +39,7 @@ struct FrfTable {  // one row per stepped-sine frequency
   std::vector<double> frequency, amplitude, amplitude_ci, phase, phase_ci, rms, peak;
   std::vector<int> periods, periods_discarded, converged, realisations, interval;
   std::vector<double> dissipated_energy, dissipated_energy_ci, dissipated_normal,
-      dissipated_tangential;
+      dissipated_tangential, dissipated_rolling;
 };
 template <class T, class F>
 void frf_columns(T& t, F&& f) {
@@ -68,6 +68,7 @@ void frf_columns(T& t, F&& f) {
   f("dissipated_normal", t.dissipated_normal, "J", "per period, normal contact damping");
   f("dissipated_tangential", t.dissipated_tangential, "J",
     "per period, friction and tangential damping");
+  f("dissipated_rolling", t.dissipated_rolling, "J", "per period, rolling resistance");
 }
 
 struct PrescribedTable {  // one row per prescribed-motion frequency
@@ -113,19 +114,34 @@ void period_columns(T& t, F&& f) {
   f("energy_in", t.energy_in, "J", "energy the containers put into the particles this period");
 }
 
+// The energy ledger of one continuous run, in the inertial frame of the particles (the
+// structure's kinetic energy includes the base's motion), each sample the state at the start
+// of a step with the works and losses up to it.
 struct EnergySeries {
-  std::vector<double> time, kinetic, elastic, dissipated_normal, dissipated_tangential,
-      dissipated_rolling, work_in;
+  std::vector<double> time, work_in, dissipated_structure, dissipated_normal, dissipated_tangential,
+      dissipated_rolling, kinetic, potential, imbalance;
 };
 template <class T, class F>
 void energy_columns(T& t, F&& f) {
   f("time", t.time, "s", "simulated time");
-  f("kinetic", t.kinetic, "J", "kinetic energy of the structure and the particles");
-  f("elastic", t.elastic, "J", "elastic energy of the structure");
+  f("work_in", t.work_in, "J",
+    "cumulative work of the input in the inertial frame: the external force's; the base's, on "
+    "the structure and through it on the dampers; the containers' for prescribed motion; with "
+    "the energy a new frequency's drive or predicted start puts in");
+  f("dissipated_structure", t.dissipated_structure, "J", "cumulative, structural damping");
   f("dissipated_normal", t.dissipated_normal, "J", "cumulative, normal contact damping");
-  f("dissipated_tangential", t.dissipated_tangential, "J", "cumulative, friction");
+  f("dissipated_tangential", t.dissipated_tangential, "J",
+    "cumulative, friction and tangential damping (with the Mindlin spring's energy change as "
+    "its stiffness follows the overlap)");
   f("dissipated_rolling", t.dissipated_rolling, "J", "cumulative, rolling resistance");
-  f("work_in", t.work_in, "J", "cumulative work of the excitation");
+  f("kinetic", t.kinetic, "J",
+    "inertial frame: the structure's (with the base's motion), the particles' translation and "
+    "rotation");
+  f("potential", t.potential, "J",
+    "the structure's elastic energy, the particles' weight (zero at the origin) and the contact "
+    "springs' energy");
+  f("imbalance", t.imbalance, "J",
+    "work_in - dissipated_* - (kinetic + potential), each as its change since the first sample");
 }
 
 struct Results {

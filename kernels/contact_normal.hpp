@@ -18,6 +18,7 @@ struct NormalResponse {
 // (restitution independent of impact speed); kt = 2/7 k (Silbert et al. 2001).
 struct LinearNormal {
   static constexpr const char* name = "linear";
+  static constexpr double kEnergyRatio = 0.5;  // spring energy / (elastic force x overlap)
   PDSIM_HD static NormalResponse respond(double overlap, double, double mass_eff, bool,
                                          const ContactParams& p) {
     const double k = p.linear_stiffness;
@@ -33,6 +34,7 @@ struct LinearNormal {
 // per contact instead of three.
 struct HertzNormal {
   static constexpr const char* name = "hertz";
+  static constexpr double kEnergyRatio = 0.4;  // U = 8/15 E* sqrt(R*) d^2.5 = 2/5 Fn d
   PDSIM_HD static NormalResponse respond(double overlap, double radius_eff, double mass_eff,
                                          bool wall, const ContactParams& p) {
     const double contact_radius = sqrt(radius_eff * overlap);

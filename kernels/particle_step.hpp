@@ -107,17 +107,13 @@ constexpr int pair_doubles() {
   return V::kPolydisperse || V::kRolling ? 9 : 6;
 }
 
-// Energy the dissipative elements of contacts take out in a step, J, by mechanism: the normal
-// dashpot; the tangential dashpot, Coulomb cap or directional friction; rolling resistance.
-struct Dissipation {
-  double normal = 0, tangential = 0, rolling = 0;
-};
-
 // What one particle adds to the step totals (reduced by the launcher in a fixed order).
 struct ParticleContribution {
   Vec3 wall_force;   // on the container
   Vec3 wall_torque;  // on the container, about its centre (Rotating variants only)
   double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;  // J
+  double elastic = 0;  // J, in the contact springs at the start of the step (energy ledger)
+  double spring_in = 0, spring_out = 0;  // J, tangential springs (see Dissipation)
   double kinetic = 0;
   double speed_sq = 0;  // largest |v|^2 at the end of the step (bounds the drift since a rebuild)
   int flags = 0;
@@ -129,6 +125,9 @@ PDSIM_HD void accumulate(ParticleContribution& sum, const ParticleContribution& 
   sum.dissipated_normal += c.dissipated_normal;
   sum.dissipated_tangential += c.dissipated_tangential;
   sum.dissipated_rolling += c.dissipated_rolling;
+  sum.elastic += c.elastic;
+  sum.spring_in += c.spring_in;
+  sum.spring_out += c.spring_out;
   sum.kinetic += c.kinetic;
   sum.speed_sq = max_of(sum.speed_sq, c.speed_sq);
   sum.flags |= c.flags;
@@ -138,6 +137,9 @@ PDSIM_HD void add_dissipation(ParticleContribution& sum, const Dissipation& d) {
   sum.dissipated_normal += d.normal;
   sum.dissipated_tangential += d.tangential;
   sum.dissipated_rolling += d.rolling;
+  sum.elastic += d.elastic;
+  sum.spring_in += d.spring_in;
+  sum.spring_out += d.spring_out;
 }
 
 PDSIM_HD Vec3 load3(const double* a, int k) {
@@ -177,8 +179,12 @@ PDSIM_HD ContactOutcome contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 ome
   const double fn = r.elastic - r.damping * vn;
   // The dashpot's work at the mid-step normal speed (tangential forces and torques leave it).
   dissipated.normal += r.damping * vn * (vn + 0.5 * dt * fn / mass_eff) * dt;
+  // The springs' energy in the leapfrog form that the step conserves for a linear spring,
+  // 1/2 k x_prev . x with x_prev = x - dt v (contact_tangential.hpp): it goes with the kinetic
+  // energy of the input velocities. Exact for a linear normal spring, O(dt^2) otherwise.
+  dissipated.elastic += V::Normal::kEnergyRatio * r.elastic * overlap + 0.5 * dt * r.elastic * vn;
   const Vec3 ft = V::Tangential::force(history, normal, vt, r, fn, kTangentMassRatio * mass_eff, dt,
-                                       p, dissipated.tangential);
+                                       p, dissipated);
   ContactOutcome out{fn * normal + ft, cross(-radius * normal, ft),
                      cross(-partner_radius * normal, ft)};
   if constexpr (V::kRolling) {

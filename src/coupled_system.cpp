@@ -86,13 +86,14 @@ CoupledSystem::CoupledSystem(const Deck& deck, const Scene& scene)
   for (const DamperScene& d : scene.dampers) engines_.push_back(make_engine(d.engine));
   pending_force_.assign(engines_.size(), 0.0);
   force_ = force_sum_ = guess_ = torque_ = torque_sum_ = pending_torque_ = pending_force_;
-  displacement_ = force_mean_ = pending_force_;
+  displacement_ = force_mean_ = spring_energy_ = pending_spring_energy_ = pending_force_;
   if (deck.structure.kind == StructureKind::beam) {
     const Vec3 axis = cross(deck.structure.beam.axis, direction_);
     rotation_axis_ = (1.0 / norm(axis)) * axis;
   }
   const int n = structure_.size();
-  load_ = damper_load_ = q_start_ = v_start_ = Eigen::VectorXd::Zero(n);
+  load_ = damper_load_ = q_start_ = v_start_ = damping_force_ = Eigen::VectorXd::Zero(n);
+  if (integrator_) base_inertia_ = structure_.mass * structure_.base_influence;
 }
 
 int CoupledSystem::particle_count() const {
@@ -169,12 +170,46 @@ double CoupledSystem::structure_elastic() const {
   return 0.5 * integrator_->q.dot(structure_.stiffness * integrator_->q);
 }
 
+double CoupledSystem::base_energy(double t) const {
+  if (!integrator_) return 0.0;
+  const double y_dot = drive_.base_velocity(t);
+  return y_dot * integrator_->v.dot(base_inertia_) + 0.5 * structure_.base_mass * y_dot * y_dot;
+}
+
+double CoupledSystem::damping_power(const Eigen::VectorXd& v) {
+  damping_force_.noalias() = structure_.damping * v;
+  return v.dot(damping_force_);
+}
+
+Energy CoupledSystem::state_energy() const {
+  Energy e;
+  e.kinetic = structure_kinetic() + base_energy(time_);
+  e.potential = structure_elastic();
+  for (std::size_t k = 0; k < engines_.size(); ++k) {
+    const EngineConfig& c = scene_.dampers[k].engine;
+    const Vec3 g = c.gravity.value_or(Vec3{});
+    const auto particles = engines_[k]->particles();
+    for (std::size_t i = 0; i < particles.size(); ++i) {
+      const ParticleState& p = particles[i];
+      const SphereMass m = sphere_mass(c.radius.at(i), c.density);
+      e.kinetic += 0.5 * (m.mass * dot(p.velocity, p.velocity) + m.inertia * dot(p.spin, p.spin));
+      e.potential -= m.mass * dot(g, p.position - (0.5 * dt_) * p.velocity);
+    }
+  }
+  return e;
+}
+
+void CoupledSystem::account_springs(std::size_t k, const StepTotals& totals, double& tangential) {
+  tangential += spring_energy_[k] - totals.spring_in;
+  pending_spring_energy_[k] = totals.spring_out;
+}
+
 // Runs one DEM step of every damper with the container at displacement u_k(t) + lead * u_dot_k,
 // accepting it unless `accept` is false; returns the power the containers put into the particles.
 double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>& force_along) {
   double power = 0;
   last_.dissipated_normal = last_.dissipated_tangential = last_.dissipated_rolling = 0;
-  last_.particle_kinetic = 0;
+  last_.particle_kinetic = last_.contact_elastic = last_.work_external = 0;
   for (std::size_t k = 0; k < engines_.size(); ++k) {
     const int row = static_cast<int>(k);
     const auto translation = structure_.attachment_translation.row(row);
@@ -189,9 +224,13 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
     force_along[k] = dot(totals.wall_force, direction_);
     torque_[k] = dot(totals.wall_torque, rotation_axis_);
     power -= dot(totals.wall_force, kin.velocity) + dot(totals.wall_torque, kin.angular_velocity);
+    // The part of that power the base's motion supplies (the structure supplies the rest).
+    last_.work_external -= force_along[k] * drive_.base_velocity(t) * dt_;
     last_.dissipated_normal += totals.dissipated_normal;
     last_.dissipated_tangential += totals.dissipated_tangential;
+    account_springs(k, totals, last_.dissipated_tangential);
     last_.dissipated_rolling += totals.dissipated_rolling;
+    last_.contact_elastic += totals.elastic;
     last_.particle_kinetic += totals.kinetic;
     particle_steps_ += engines_[k]->count();
   }
@@ -220,16 +259,20 @@ void CoupledSystem::step_prescribed() {
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
     if (totals.flags) check(totals, k, kin.position, when(time_));
     engines_[k]->accept();
+    account_springs(k, totals, last_.dissipated_tangential);
+    spring_energy_[k] = pending_spring_energy_[k];
     displacement_[k] = u;
     force_mean_[k] = dot(totals.wall_force, m.axis);
     last_.damper_force += force_mean_[k];
     last_.power_in -= dot(totals.wall_force, kin.velocity);
+    last_.contact_elastic += totals.elastic;
     last_.dissipated_normal += totals.dissipated_normal;
     last_.dissipated_tangential += totals.dissipated_tangential;
     last_.dissipated_rolling += totals.dissipated_rolling;
     last_.particle_kinetic += totals.kinetic;
     particle_steps_ += engines_[k]->count();
   }
+  last_.work_external = last_.power_in * dt_;
   time_ += dt_;
 }
 
@@ -248,10 +291,15 @@ void CoupledSystem::step_explicit(bool impulse) {
   // The DEM sub-steps see the container extrapolated linearly over the coupling interval.
   std::fill(force_sum_.begin(), force_sum_.end(), 0.0);
   std::fill(torque_sum_.begin(), torque_sum_.end(), 0.0);
-  double power = 0, dissipated_n = 0, dissipated_t = 0, dissipated_r = 0;
+  double power = 0, dissipated_n = 0, dissipated_t = 0, dissipated_r = 0, work_base = 0;
+  double elastic = 0;
+  const double base_before = base_energy(t0);
   for (int s = 0; s < every_; ++s) {
     power += compute_dampers(t0 + s * dt_, s * dt_, force_);
+    work_base += last_.work_external;
+    if (s == 0) elastic = last_.contact_elastic;  // the interval's start
     for (auto& e : engines_) e->accept();
+    spring_energy_ = pending_spring_energy_;
     for (std::size_t k = 0; k < force_.size(); ++k) {
       force_sum_[k] += force_[k];
       torque_sum_[k] += torque_[k];
@@ -276,8 +324,10 @@ void CoupledSystem::step_explicit(bool impulse) {
   if (impulse) {
     damper_load_ *= h;  // impulse over the interval
     integrator_->kick(damper_load_);
+    v_start_ = integrator_->v;
     integrator_->step(h, load_);
   } else {
+    v_start_ = integrator_->v;
     load_ += damper_load_;
     integrator_->step(h, load_);
     load_ -= damper_load_;
@@ -287,8 +337,12 @@ void CoupledSystem::step_explicit(bool impulse) {
   last_.dissipated_normal = dissipated_n;
   last_.dissipated_tangential = dissipated_t;
   last_.dissipated_rolling = dissipated_r;
-  last_.work_external = load_.dot(integrator_->q - q_start_);
+  last_.contact_elastic = elastic;
+  // Over the drift, the trapezoidal rule (h is a DEM step or a few: O((omega h)^2) small).
+  last_.dissipated_structure = 0.5 * h * (damping_power(v_start_) + damping_power(integrator_->v));
   time_ = t0 + h;
+  last_.work_external =
+      load_.dot(integrator_->q - q_start_) + work_base + base_energy(time_) - base_before;
 }
 
 void CoupledSystem::step_tight() {
@@ -312,9 +366,11 @@ void CoupledSystem::step_tight() {
   force_mean_ = pending_force_;
   for (std::size_t k = 0; k < engines_.size(); ++k) displacement_[k] = container_displacement(k);
   for (auto& e : engines_) e->accept();  // particles t_n -> t_{n+1}
+  spring_energy_ = pending_spring_energy_;
 
   q_start_ = integrator_->q;
   v_start_ = integrator_->v;
+  const double base_before = base_energy(t0);
   external_load(t0 + 0.5 * dt_, load_);
   guess_ = pending_force_;
   double power = 0;
@@ -340,14 +396,17 @@ void CoupledSystem::step_tight() {
     guess_ = force_;
     if (change <= coupling_.tolerance * scale) break;
   }
-  record.work_external = load_.dot(integrator_->q - q_start_);
+  record.dissipated_structure =
+      0.5 * dt_ * (damping_power(v_start_) + damping_power(integrator_->v));
   StepRecord computed = last_;  // tallies of the step just computed, reported once accepted
   computed.power_in = power;
-  last_ = record;
   pending_force_ = force_;
   pending_torque_ = torque_;
   pending_record_ = computed;
   time_ = t0 + dt_;
+  // The accepted particle step's base work (its record), the structure's step's own.
+  record.work_external += load_.dot(integrator_->q - q_start_) + base_energy(time_) - base_before;
+  last_ = record;
 }
 
 double CoupledSystem::settle_step(double dt) {
@@ -360,6 +419,7 @@ double CoupledSystem::settle_step(double dt) {
     if (totals.flags)
       check(totals, k, kin.position, "while the bed settled (dt " + std::to_string(dt) + " s)");
     engines_[k]->accept();
+    spring_energy_[k] = totals.spring_out;
     speed_sq = std::max(speed_sq, totals.speed_sq);
     particle_steps_ += engines_[k]->count();
   }
@@ -479,6 +539,7 @@ StateArrays CoupledSystem::save() const {
     out["structure.q"].assign(integrator_->q.data(), integrator_->q.data() + integrator_->q.size());
     out["structure.v"].assign(integrator_->v.data(), integrator_->v.data() + integrator_->v.size());
   }
+  out["spring_energy"] = spring_energy_;
   out["time"] = {time_};
   out["particle_steps"] = {static_cast<double>(particle_steps_)};
   return out;
@@ -493,6 +554,8 @@ void CoupledSystem::restore(const StateArrays& state) {
     integrator_->q = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<int>(q.size()));
     integrator_->v = Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<int>(v.size()));
   }
+  // Checkpoints before ended contacts were tallied: an error of one step's releases.
+  if (const auto it = state.find("spring_energy"); it != state.end()) spring_energy_ = it->second;
   time_ = state.at("time").at(0);
   particle_steps_ = static_cast<long long>(state.at("particle_steps").at(0));
   pending_ = false;

@@ -39,7 +39,17 @@ struct StepRecord {
   double power_in = 0;      // W, power the containers put into the particles
   double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;  // J, step
   double particle_kinetic = 0;  // J after the step
-  double work_external = 0;     // J, work of the external input in this step
+  // J, work of the input in this step in the inertial frame: the external force's, or the
+  // base's (on the structure, and through it on the dampers; prescribed motion: the
+  // containers' on the particles).
+  double work_external = 0;
+  double dissipated_structure = 0;  // J, structural damping in this step
+  double contact_elastic = 0;       // J, in the contact springs at the start of the step
+};
+
+// Kinetic and potential energy of a state, J.
+struct Energy {
+  double kinetic = 0, potential = 0;
 };
 
 class CoupledSystem {
@@ -56,8 +66,14 @@ class CoupledSystem {
   const StepRecord& last() const { return last_; }
   bool has_structure() const { return static_cast<bool>(integrator_); }
   const LinearStructure& structure() const { return structure_; }
-  double structure_kinetic() const;  // J
+  double structure_kinetic() const;  // J, relative to the base
   double structure_elastic() const;  // J
+  // The current state's energy in the inertial frame, the contact springs excepted (the DEM
+  // step reports them, StepRecord::contact_elastic): the structure's, its kinetic energy with
+  // the base's motion; the particles' translation and rotation at their stored half-step
+  // velocities, and their weight's potential at the matching positions x - dt v / 2 (zero at
+  // the origin).
+  Energy state_energy() const;
   long long particle_steps() const { return particle_steps_; }
   int particle_count() const;
   const std::vector<std::unique_ptr<DemEngine>>& engines() const { return engines_; }
@@ -96,6 +112,10 @@ class CoupledSystem {
   // Generalised external load at t, written into `load` (no allocation in the step loop).
   void external_load(double t, Eigen::VectorXd& load) const;
   double response(const Eigen::VectorXd& q) const;
+  // J: what the base's motion adds at t to the structure's kinetic energy relative to the
+  // base, y' v^T M r + 1/2 base_mass y'^2 (structure.hpp).
+  double base_energy(double t) const;
+  double damping_power(const Eigen::VectorXd& v);      // W, v^T C v
   double container_displacement(std::size_t k) const;  // absolute, along direction_, m
   ContainerKinematics container_now(std::size_t k) const;
   void step_prescribed();
@@ -125,8 +145,14 @@ class CoupledSystem {
   // Work buffers of the step loop, sized once.
   std::vector<double> force_, force_sum_, guess_, torque_, torque_sum_, pending_torque_;
   std::vector<double> displacement_, force_mean_;  // per damper, see damper_displacements()
+  // Per damper, J: the tangential springs' energy after the last accepted DEM step, and after
+  // the computed one (tight). What of it the next step does not carry in (StepTotals::
+  // spring_in: ended contacts, Mindlin's stiffness change) is tallied as friction's.
+  std::vector<double> spring_energy_, pending_spring_energy_;
+  void account_springs(std::size_t k, const StepTotals& totals, double& tangential);
   std::vector<ContainerKinematics> kinematics_at_configure_;  // until the next step
-  Eigen::VectorXd load_, damper_load_, q_start_, v_start_;
+  Eigen::VectorXd load_, damper_load_, q_start_, v_start_, damping_force_;
+  Eigen::VectorXd base_inertia_;  // M r, N per m/s^2 of base acceleration
 };
 
 }  // namespace pdsim

@@ -72,22 +72,29 @@ int FrequencyRun::configure(double frequency, double amplitude) {
   restored_ = false;
   Drive drive{deck_.excitation.input, amplitude, 2 * kPi * frequency, system_.time(),
               std::fmod(angle, 2 * kPi)};
-  system_.configure(period / steps, drive);
+  jump([&] { system_.configure(period / steps, drive); });
   dt_ = period / steps;
   frequency_ = frequency;
   return steps / every;
 }
 
+template <class Change>
+void FrequencyRun::jump(Change&& change) {
+  if (!energy_) return change();
+  const Energy before = system_.state_energy();
+  change();
+  const Energy after = system_.state_energy();
+  work_in_ += after.kinetic + after.potential - before.kinetic - before.potential;
+}
+
 void FrequencyRun::step() {
   if (g_stop_runs) throw SimulationError("interrupted");
+  // A sample is the state at the start of the step, with the tallies up to it.
+  const bool sample = system_.time() + 1e-12 >= next_sample_;
+  const Energy state = energy_ && sample ? system_.state_energy() : Energy{};
   system_.advance();
   const StepRecord& r = system_.last();
-  const double h = dt_ * system_.steps_per_advance();
-  dissipated_n_ += r.dissipated_normal;
-  dissipated_t_ += r.dissipated_tangential;
-  dissipated_r_ += r.dissipated_rolling;
-  work_in_ += r.work_external + (system_.has_structure() ? 0.0 : r.power_in * h);
-  if (r.time + 1e-12 >= next_sample_) {
+  if (sample) {
     next_sample_ += sample_every_;
     TimeSeries& ts = timeseries_;
     ts.time.push_back(r.time);
@@ -98,14 +105,25 @@ void FrequencyRun::step() {
     if (energy_) {
       EnergySeries& e = *energy_;
       e.time.push_back(r.time);
-      e.kinetic.push_back(r.particle_kinetic + system_.structure_kinetic());
-      e.elastic.push_back(system_.structure_elastic());
+      e.work_in.push_back(work_in_);
+      e.dissipated_structure.push_back(dissipated_s_);
       e.dissipated_normal.push_back(dissipated_n_);
       e.dissipated_tangential.push_back(dissipated_t_);
       e.dissipated_rolling.push_back(dissipated_r_);
-      e.work_in.push_back(work_in_);
+      e.kinetic.push_back(state.kinetic);
+      e.potential.push_back(state.potential + r.contact_elastic);
+      // Against the first sample, the ledger's origin.
+      auto change = [&](const std::vector<double>& column) { return column.back() - column[0]; };
+      e.imbalance.push_back(change(e.work_in) - change(e.dissipated_structure) -
+                            change(e.dissipated_normal) - change(e.dissipated_tangential) -
+                            change(e.dissipated_rolling) - change(e.kinetic) - change(e.potential));
     }
   }
+  dissipated_s_ += r.dissipated_structure;
+  dissipated_n_ += r.dissipated_normal;
+  dissipated_t_ += r.dissipated_tangential;
+  dissipated_r_ += r.dissipated_rolling;
+  work_in_ += r.work_external;
   if (!std::isfinite(r.displacement))
     throw SimulationError(
         "the structure response became non-finite at t = " + std::to_string(r.time) + " s");
@@ -123,7 +141,7 @@ std::complex<double> FrequencyRun::predict_start() {
   const Eigen::VectorXcd harmonic = system_.predicted_harmonic(impedance());
   // An undamped structure driven at its own frequency has no steady state: carry on instead.
   if (!harmonic.allFinite()) return system_.response_of(Eigen::VectorXcd::Zero(harmonic.size()));
-  system_.start_on(harmonic, mean_force_);
+  jump([&] { system_.start_on(harmonic, mean_force_); });
   return system_.response_of(harmonic);
 }
 
@@ -243,7 +261,8 @@ StateArrays FrequencyRun::save() const {
                         work_in_,
                         next_sample_,
                         d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0,
-                        dissipated_r_};
+                        dissipated_r_,
+                        dissipated_s_};
   out["run.effective_mass"] = effective_mass_;
   out["run.effective_damping"] = effective_damping_;
   out["run.mean_force"] = mean_force_;
@@ -259,6 +278,7 @@ void FrequencyRun::restore(const StateArrays& state) {
   next_sample_ = t.at(3);
   restored_angle_ = t.at(4);
   dissipated_r_ = t.size() > 5 ? t.at(5) : 0.0;  // checkpoints before rolling was tallied
+  dissipated_s_ = t.size() > 6 ? t.at(6) : 0.0;  // before structural damping was
   restored_ = true;
   effective_mass_ = state.at("run.effective_mass");
   effective_damping_ = state.at("run.effective_damping");

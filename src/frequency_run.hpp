@@ -67,6 +67,10 @@ class FrequencyRun {
   double first_mode() const;
   int configure(double frequency, double amplitude);
   void step();
+  // Runs `change` (a jump of the state: a new drive, a predicted start) and counts the energy
+  // it adds in work_in_ when the ledger is kept.
+  template <class Change>
+  void jump(Change&& change);
   std::vector<std::complex<double>> impedance() const;  // the dampers' model at the drive's w
   std::complex<double> predict_start();                 // returns the predicted response, m
   void learn_impedance(const PeriodSummary& mean, double omega);
@@ -78,7 +82,8 @@ class FrequencyRun {
   TimeSeries timeseries_;
   std::optional<EnergySeries> energy_;
   double dt_ = 0, sample_every_ = 0, next_sample_ = 0, frequency_ = 0;
-  double dissipated_n_ = 0, dissipated_t_ = 0, dissipated_r_ = 0, work_in_ = 0;
+  // The ledger's cumulative terms, J (see energy_columns).
+  double dissipated_n_ = 0, dissipated_t_ = 0, dissipated_r_ = 0, dissipated_s_ = 0, work_in_ = 0;
   // The drive's phase at a restored state (the restored system has no drive yet).
   double restored_angle_ = 0;
   bool restored_ = false;

@@ -105,7 +105,8 @@ std::vector<double> pack(const FrequencyPoint& p) {
           p.energy_in.mean,
           p.energy_in.half_width,
           p.mean.dissipated_normal,
-          p.mean.dissipated_tangential};
+          p.mean.dissipated_tangential,
+          p.mean.dissipated_rolling};
 }
 
 // The per-period harmonics of a point, five numbers a period.
@@ -127,7 +128,9 @@ void unpack_periods(const std::vector<double>& v, FrequencyPoint& p) {
 }
 
 FrequencyPoint unpack(const std::vector<double>& v) {
-  if (v.size() != 18) throw SimulationError("checkpoint point of an unknown layout");
+  // 18 numbers: written before rolling was tallied.
+  if (v.size() != 18 && v.size() != 19)
+    throw SimulationError("checkpoint point of an unknown layout");
   FrequencyPoint p;
   Stationary& j = p.judged;
   p.frequency = v[0];
@@ -147,6 +150,7 @@ FrequencyPoint unpack(const std::vector<double>& v) {
   p.energy_in = {v[14], v[15]};
   p.mean.dissipated_normal = v[16];
   p.mean.dissipated_tangential = v[17];
+  p.mean.dissipated_rolling = v.size() > 18 ? v[18] : std::nan("");  // not measured
   return p;
 }
 
@@ -160,7 +164,7 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
   std::complex<double> mean = 0;
   int periods = 0, discarded = 0;
   bool stationary = true;
-  std::vector<double> rms, dn, dt;
+  std::vector<double> rms, dn, dt, dr;
   double peak = 0;
   for (const FrequencyPoint& p : runs) {
     mean += p.judged.mean / double(runs.size());
@@ -171,6 +175,7 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
     peak = std::max(peak, p.mean.peak);
     dn.push_back(p.mean.dissipated_normal);
     dt.push_back(p.mean.dissipated_tangential);
+    dr.push_back(p.mean.dissipated_rolling);
   }
   // Amplitudes and phases are combined separately: runs in regimes of different phase would
   // shrink a mean of their complex harmonics below every run's amplitude. Each run's phase is
@@ -251,6 +256,7 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
   f.dissipated_energy_ci.push_back(energy.half_width);
   f.dissipated_normal.push_back(average(dn));
   f.dissipated_tangential.push_back(average(dt));
+  f.dissipated_rolling.push_back(average(dr));
 }
 
 // Everything that decides a settled bed: a bed file made for other particles is refused.

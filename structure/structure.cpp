@@ -73,6 +73,7 @@ LinearStructure build_sdof(const Deck& deck) {
   s.damping = MatrixXd::Constant(1, 1, spec.damping);
   s.stiffness = MatrixXd::Constant(1, 1, spec.stiffness);
   s.base_influence = VectorXd::Ones(1);
+  s.base_mass = spec.mass;
   s.force_shape = VectorXd::Ones(1);
   const auto dampers = static_cast<Eigen::Index>(deck.dampers.size());
   s.attachments.assign(deck.dampers.size(), Attachment{0, -1, 0.0, 0});
@@ -150,6 +151,7 @@ LinearStructure build_beam(const Deck& deck) {
   for (int k = 0; k < nodes; ++k) rigid_translation(2 * k) = 1;
   const VectorXd support_inertia = mass_full(free_dofs, Eigen::all) * rigid_translation;
   s.base_influence = s.mass.ldlt().solve(support_inertia);
+  s.base_mass = rigid_translation.dot(mass_full * rigid_translation);
 
   const auto dampers = static_cast<Eigen::Index>(deck.dampers.size());
   s.attachment_translation = MatrixXd::Zero(dampers, n);

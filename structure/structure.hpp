@@ -39,6 +39,10 @@ struct LinearStructure {
   // (absolute displacement = y + relative displacement from the maps below).
   Eigen::VectorXd base_influence;
   Eigen::VectorXd force_shape;  // unit external force: where excitation.input = "force" acts
+  // kg: the mass that moves with the base when the structure moves rigidly with it (a beam's
+  // supports included), r^T M r over every DOF: with base input the structure's kinetic energy
+  // in the inertial frame is 1/2 v^T M v + y' v^T M base_influence + 1/2 base_mass y'^2.
+  double base_mass = 0;
   std::vector<Attachment> attachments;  // one per damper, in deck order
   int response_dof = 0;  // reported displacement (first damper's node, or sdof); information
   // Kinematic maps, so that callers never index q: for damper i the displacement along

@@ -141,8 +141,10 @@ template <class V>
   double* const out[9] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
                           batch.load[3].data(), batch.load[4].data(), batch.load[5].data(),
                           batch.load[6].data(), batch.load[7].data(), batch.load[8].data()};
-  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;
-#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential, dissipated_rolling)
+  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0, elastic = 0,
+         spring_in = 0, spring_out = 0;
+#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential, dissipated_rolling, \
+                               elastic, spring_in, spring_out)
   for (int e = 0; e < end; ++e) {
     Dissipation d;
     Vec3 h{};
@@ -157,11 +159,19 @@ template <class V>
     dissipated_normal += e < pairs ? d.normal : 0.0;
     dissipated_tangential += e < pairs ? d.tangential : 0.0;
     if constexpr (V::kRolling) dissipated_rolling += e < pairs ? d.rolling : 0.0;
+    elastic += e < pairs ? d.elastic : 0.0;
+    if constexpr (history) {
+      spring_in += e < pairs ? d.spring_in : 0.0;
+      spring_out += e < pairs ? d.spring_out : 0.0;
+    }
   }
   if constexpr (history) batch.scatter(pairs, a.history.neighbour_out);
   total.dissipated_normal += dissipated_normal;
   total.dissipated_tangential += dissipated_tangential;
   total.dissipated_rolling += dissipated_rolling;
+  total.elastic += elastic;
+  total.spring_in += spring_in;
+  total.spring_out += spring_out;
 }
 
 // The same for the first `walls` wall entries; their loads go to batch.load.
@@ -178,8 +188,10 @@ template <class V>
                       *const ny = batch.normal[1].data(), *const nz = batch.normal[2].data();
   double* const out[6] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
                           batch.load[3].data(), batch.load[4].data(), batch.load[5].data()};
-  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;
-#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential, dissipated_rolling)
+  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0, elastic = 0,
+         spring_in = 0, spring_out = 0;
+#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential, dissipated_rolling, \
+                               elastic, spring_in, spring_out)
   for (int e = 0; e < end; ++e) {
     Dissipation d;
     Vec3 h{};
@@ -189,6 +201,11 @@ template <class V>
     dissipated_normal += e < walls ? d.normal : 0.0;
     dissipated_tangential += e < walls ? d.tangential : 0.0;
     if constexpr (V::kRolling) dissipated_rolling += e < walls ? d.rolling : 0.0;
+    elastic += e < walls ? d.elastic : 0.0;
+    if constexpr (history) {
+      spring_in += e < walls ? d.spring_in : 0.0;
+      spring_out += e < walls ? d.spring_out : 0.0;
+    }
     out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
     out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
   }
@@ -196,6 +213,9 @@ template <class V>
   sum.dissipated_normal += dissipated_normal;
   sum.dissipated_tangential += dissipated_tangential;
   sum.dissipated_rolling += dissipated_rolling;
+  sum.elastic += elastic;
+  sum.spring_in += spring_in;
+  sum.spring_out += spring_out;
 }
 
 // When a particle's slot tests find no contact, its nearest partner's gap bounds how long none

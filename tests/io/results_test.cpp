@@ -237,17 +237,20 @@ TEST_CASE("results: h5dump finds the object names of the brief's output contract
                             "/frf/dissipated_energy",
                             "/frf/dissipated_normal",
                             "/frf/dissipated_tangential",
+                            "/frf/dissipated_rolling",
                             "/prescribed/frequency",
                             "/prescribed/dissipated_power",
                             "/prescribed/force_amplitude",
                             "/prescribed/force_phase",
                             "/energy/time",
-                            "/energy/kinetic",
-                            "/energy/elastic",
+                            "/energy/work_in",
+                            "/energy/dissipated_structure",
                             "/energy/dissipated_normal",
                             "/energy/dissipated_tangential",
                             "/energy/dissipated_rolling",
-                            "/energy/work_in",
+                            "/energy/kinetic",
+                            "/energy/potential",
+                            "/energy/imbalance",
                             "/checkpoint/structure_state"};
   for (const char* dataset : datasets) {
     CAPTURE(dataset);

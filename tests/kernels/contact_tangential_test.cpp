@@ -109,7 +109,7 @@ TEST_CASE("oblique impact, small vt/vn: Mindlin history stays within the energy 
 // stuck spring conserves exactly, and the law's tally.
 struct TangentRun {
   double initial_energy = 0, final_energy = 0;  // J
-  double tally = 0;                             // J, the law's dissipation
+  Dissipation tally;                            // J, the law's dissipation in .tangential
   double damper_work = 0;    // J, sum of ct v . (v + v') / 2 dt over the trajectory
   double largest_force = 0;  // N
 };
@@ -146,7 +146,7 @@ TEST_CASE("Mindlin history: a stuck undamped spring tallies zero") {
   const TangentRun run = tangent_oscillator(1.0, 1.0, 1e-3, 24, 20);
   REQUIRE(run.largest_force < 0.1 * kFriction);
   CHECK(std::fabs(run.final_energy - run.initial_energy) <= 1e-12 * run.initial_energy);
-  CHECK(std::fabs(run.tally) <= 1e-12 * run.initial_energy);
+  CHECK(std::fabs(run.tally.tangential) <= 1e-12 * run.initial_energy);
 }
 
 TEST_CASE("Mindlin history: damped and sliding contacts tally the scheme's exact loss") {
@@ -165,7 +165,7 @@ TEST_CASE("Mindlin history: damped and sliding contacts tally the scheme's exact
       CHECK((run.largest_force >= kFriction * c.normal_force * (1 - 1e-12)) == c.slides);
       const double loss = run.initial_energy - run.final_energy;
       CHECK(loss > 0.1 * run.initial_energy);
-      CHECK(std::fabs(run.tally - loss) <= 1e-9 * run.initial_energy);
+      CHECK(std::fabs(run.tally.tangential - loss) <= 1e-9 * run.initial_energy);
       // Stuck, all of it is the dashpot's work over the mid-step velocity.
       if (!c.slides) CHECK(std::fabs(run.damper_work - loss) <= 1e-9 * run.initial_energy);
     }
@@ -182,7 +182,8 @@ TEST_CASE("directional Coulomb: the slip stops without reversing, at any mu Fn d
     CAPTURE(ratio);
     const double normal_force = ratio * tangent_mass * v0 / (kFriction * dt);
     Vec3 v{v0, 0, 0};
-    double tally = 0, smallest = v0;
+    Dissipation tally;
+    double smallest = v0;
     int moving = 0;
     for (int n = 0; n < 300; ++n) {
       const Vec3 f = DirectionalCoulomb::force(nullptr, normal, v, {}, normal_force, tangent_mass,
@@ -193,7 +194,7 @@ TEST_CASE("directional Coulomb: the slip stops without reversing, at any mu Fn d
     }
     CHECK(smallest == 0);  // stopped exactly, never reversed
     CHECK(moving == static_cast<int>(std::ceil(1 / ratio)) - 1);
-    CHECK(tally == doctest::Approx(0.5 * tangent_mass * v0 * v0).epsilon(1e-12));
+    CHECK(tally.tangential == doctest::Approx(0.5 * tangent_mass * v0 * v0).epsilon(1e-12));
   }
 }
 

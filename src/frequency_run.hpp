@@ -24,6 +24,12 @@ struct FrequencyPoint {
   std::vector<PeriodSummary> periods;  // every period run (dampers' harmonics left out)
 };
 
+// A fixed run (sine, or prescribed motion with a duration) takes the whole periods of its
+// duration and reports their means; the others run each frequency to a steady state.
+inline bool fixed_duration(const ExcitationSpec& x) {
+  return x.kind == ExcitationKind::sine || (x.kind == ExcitationKind::prescribed && x.duration > 0);
+}
+
 struct BedReport {
   bool ran = false, settled = false;
   double time_s = 0;  // s of settling
@@ -36,6 +42,7 @@ extern std::atomic<bool> g_stop_runs;
 class FrequencyRun {
  public:
   // `progress(frequency, fraction of this frequency done)` is called after every period.
+  // frequency 0 while the bed settles
   using Progress = std::function<void(double frequency, double fraction)>;
   FrequencyRun(const Deck& deck, const Scene& scene, Progress progress = {});
 

@@ -40,25 +40,45 @@ extern "C" void on_interrupt(int) {
 using Clock = std::chrono::steady_clock;
 
 // Progress on stderr: a rewritten line on a terminal, a line every few seconds otherwise. Each
-// task reports how many of its frequencies it has done (with the fraction of the current one).
+// task reports how many of its frequencies it has done (with the fraction of the current one),
+// or frequency 0 while its bed settles. The ETA is the remaining work at the rate of the work
+// done since the beds settled (how long a bed takes to come to rest is not known in advance).
+// A steady-state frequency's fraction is its periods over max_periods, an upper bound that most
+// frequencies stop far below, so there only whole frequencies count towards the rate.
 class Progress {
  public:
-  Progress(bool quiet, std::size_t tasks, double total)
-      : quiet_(quiet), tty_(isatty(fileno(stderr)) != 0), done_(tasks, 0.0), total_(total) {}
+  Progress(bool quiet, std::size_t tasks, double total, bool whole)
+      : quiet_(quiet),
+        tty_(isatty(fileno(stderr)) != 0),
+        whole_(whole),
+        done_(tasks, 0.0),
+        total_(total) {}
   void update(std::size_t task, double done, double frequency) {
     if (quiet_) return;
     std::lock_guard<std::mutex> lock(mutex_);
-    done_[task] = done;
     const auto now = Clock::now();
+    if (frequency > 0) {
+      done_[task] = done;
+      if (!working_) working_ = true, work_start_ = now;
+    }
     if (now - last_ < (tty_ ? std::chrono::milliseconds(250) : std::chrono::seconds(5))) return;
     last_ = now;
-    double sum = 0;
-    for (double d : done_) sum += d;
-    const double fraction = std::min(1.0, sum / total_);
     const double elapsed = std::chrono::duration<double>(now - start_).count();
-    const double eta = fraction > 1e-3 ? elapsed * (1 - fraction) / fraction : 0;
-    std::fprintf(stderr, "%sf = %.3f Hz  %5.1f%%  elapsed %.0f s  ETA %.0f s%s", tty_ ? "\r" : "",
-                 frequency, 100 * fraction, elapsed, eta, tty_ ? "   " : "\n");
+    const char* end = tty_ ? "   " : "\n";
+    if (frequency <= 0) {
+      std::fprintf(stderr, "%ssettling the bed  elapsed %.0f s%s", tty_ ? "\r" : "", elapsed, end);
+    } else {
+      double sum = 0, counted = 0;
+      for (double d : done_) sum += d, counted += whole_ ? std::floor(d) : d;
+      const double working = std::chrono::duration<double>(now - work_start_).count();
+      std::fprintf(stderr, "%sf = %.3f Hz  %5.1f%%  elapsed %.0f s  ", tty_ ? "\r" : "", frequency,
+                   100 * std::min(1.0, sum / total_), elapsed);
+      if (counted > 0)
+        std::fprintf(stderr, "ETA %.0f s%s", working * std::max(0.0, total_ - counted) / counted,
+                     end);
+      else
+        std::fprintf(stderr, "ETA after the first %s%s", whole_ ? "frequency" : "steps", end);
+    }
     std::fflush(stderr);
   }
   // A line of its own (a finished frequency), not overwritten by the progress line.
@@ -73,11 +93,11 @@ class Progress {
   }
 
  private:
-  bool quiet_, tty_;
+  bool quiet_, tty_, whole_, working_ = false;
   std::mutex mutex_;
   std::vector<double> done_;
   double total_;
-  Clock::time_point start_ = Clock::now(), last_{};
+  Clock::time_point start_ = Clock::now(), last_{}, work_start_{};
 };
 
 const char* start_name(FrequencyStart s) {
@@ -199,9 +219,12 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
   const double phase_mean = std::arg(along * std::polar(1.0, phase.interval.mean));
   const double phase_ci = std::min(kPi, phase.interval.half_width);
   const int interval = runs.size() == 1 ? 0 : amplitude.consistent && phase.consistent ? 1 : 2;
+  // A fixed run asked for no tolerance: it is done when every realisation is (frequency_run).
   const bool converged =
-      runs.size() == 1 ? runs[0].judged.converged
-                       : stationary && amplitude_ci <= tolerance * size && phase_ci <= tolerance;
+      runs.size() == 1 || fixed_duration(deck.excitation)
+          ? std::all_of(runs.begin(), runs.end(),
+                        [](const FrequencyPoint& p) { return p.judged.converged; })
+          : stationary && amplitude_ci <= tolerance * size && phase_ci <= tolerance;
   auto average = [](const std::vector<double>& v) {
     double s = 0;
     for (double x : v) s += x;
@@ -354,7 +377,7 @@ class Driver {
     stop_after_ = stop_after;
     const ExcitationSpec& x = deck_.excitation;
     if (x.kind == ExcitationKind::free_decay || x.kind == ExcitationKind::sine) {
-      Progress progress(quiet_, 1, 1.0);
+      Progress progress(quiet_, 1, 1.0, false);
       FrequencyRun run(deck_, scenes_[0],
                        [&](double f, double done) { progress.update(0, done, f); });
       try {
@@ -511,7 +534,7 @@ class Driver {
     in_parallel(missing.size(), [&](std::size_t k) {
       const std::size_t r = missing[k];
       FrequencyRun run(deck_, scenes_[r],
-                       [&](double f, double done) { progress.update(r, 0.1 * done, f); });
+                       [&](double f, double done) { progress.update(r, done, f); });
       try {
         reports_[r] = run.settle_bed();
       } catch (const SimulationError& e) {
@@ -552,7 +575,8 @@ class Driver {
     }
     double total = 0;
     for (const Task& t : tasks) total += double(t.frequencies.size());
-    Progress progress(quiet_, std::max(tasks.size(), scenes_.size()), std::max(total, 1.0));
+    Progress progress(quiet_, std::max(tasks.size(), scenes_.size()), std::max(total, 1.0),
+                      !fixed_duration(deck_.excitation));
     progress_ = &progress;
     settle_beds(progress);
     in_parallel(tasks.size(), [&](std::size_t k) {
@@ -665,7 +689,10 @@ class Driver {
       << (prescribed ? " N" : " mm") << " +- "
       << 100 * p.judged.amplitude_ci / std::max(size, 1e-300) << " %, " << p.judged.periods
       << " periods (" << p.judged.discarded << " warm-up)";
-    s << (p.judged.converged ? ", converged" : ", NOT converged: " + p.judged.reason);
+    if (fixed_duration(deck_.excitation))
+      s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
+    else
+      s << (p.judged.converged ? ", converged" : ", NOT converged: " + p.judged.reason);
     return s.str();
   }
 
@@ -765,6 +792,18 @@ std::string summary_line(const Results& r, const std::string& path, const Deck& 
                    const char* unit) {
     int count = 0;
     for (int c : converged) count += c;
+    if (fixed_duration(deck.excitation)) {  // no steady state was asked for: say what it shows
+      s << frequency.size() << (frequency.size() == 1 ? " frequency" : " frequencies") << ", "
+        << deck.excitation.duration << " s each";
+      const long k = peak_of(value, std::vector<int>(frequency.size(), 1));
+      s << "; " << (frequency.size() == 1 ? "" : "peak ") << what << " "
+        << scale * value[std::size_t(k)] << " +- " << scale * ci[std::size_t(k)] << " " << unit
+        << " at " << frequency[std::size_t(k)] << " Hz";
+      if (count < static_cast<int>(frequency.size()))
+        s << "; drifting or too short for an interval at " << listed(frequency, converged, 0)
+          << " Hz (run longer)";
+      return;
+    }
     s << frequency.size() << " frequencies, " << count << " converged";
     const long k = peak_of(value, converged);
     if (k >= 0)
@@ -992,8 +1031,7 @@ std::string check_report(const Deck& deck, const Scene& scene) {
   }
   const ExcitationSpec& x = deck.excitation;
   const SettleSpec& settle = x.settle;
-  const bool judged = x.kind == ExcitationKind::stepped_sine ||
-                      (x.kind == ExcitationKind::prescribed && x.duration <= 0);
+  const bool judged = x.kind != ExcitationKind::free_decay && !fixed_duration(x);
   if (judged)
     s << "frequencies: " << x.frequencies.size() << ", start = " << start_name(x.start)
       << "; steady when the 95 % interval is within " << 100 * settle.tolerance << " % ("

@@ -257,10 +257,14 @@ Stationary summarise(const std::vector<std::complex<double>>& series,
   s.tau = tau;
   // Batch means of 2 tau periods (rounded up): nearly independent for any correlation shape
   // (adjacent batches of an AR(1) correlate by 0.13 at phi = 0.5). At least 5 periods when
-  // there is scatter: tau from a few dozen periods is biased low, and the test runs after every
-  // period, so an early underestimate would stop a run with too narrow an interval.
-  const int shortest = scatter > retained * resolution * resolution ? 5 : 1;
+  // there is scatter: tau from a few dozen periods is biased low, and a sequential test runs
+  // after every period, so an early underestimate would stop a run with too narrow an interval.
+  const int shortest = criteria.sequential && scatter > retained * resolution * resolution ? 5 : 1;
   s.batch_length = std::max(shortest, static_cast<int>(std::ceil(2 * tau - 1e-9)));
+  // Judged once, a short fixed run takes the batches it has room for: its interval then
+  // follows the periods' scatter even where they correlate (a wider one needs a longer run).
+  if (!criteria.sequential)
+    s.batch_length = std::min(s.batch_length, std::max(1, retained / criteria.min_batches));
 
   // Components along and across the mean: their intervals are those of |H| and of arg H.
   const double size = std::abs(s.mean);

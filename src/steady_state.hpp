@@ -16,6 +16,9 @@ struct SteadyStateCriteria {
   double tolerance = 1e-2;  // relative 95 % half-width of |H| wanted (and of the phase, rad)
   int min_periods = 10;     // never converged before this many periods
   int min_batches = 4;      // batch means needed for an interval
+  // Judged after every period until it passes (a steady-state run), or once at the end of a
+  // fixed duration, where an early underestimate of the correlation cannot stop the run.
+  bool sequential = true;
 };
 
 // The stationary part of a per-period series of complex first harmonics H_k.
@@ -60,9 +63,9 @@ struct RunMean {
 // within their own intervals (Cochran's Q below its 99 % chi-square quantile, each run's
 // standard error at least `resolution` / 1.96, so that differences below about twice
 // `resolution` never count), the runs sample one state and their intervals pool: the average
-// with sqrt(sum se^2) / R, widened to hold every run's mean. When they disagree (coexisting regimes of the bed, each run
-// locked in one), no single run's interval means anything and the interval is the spread of the
-// runs' means (Student t, R - 1 degrees of freedom).
+// with sqrt(sum se^2) / R, widened to hold every run's mean. When they disagree (coexisting regimes
+// of the bed, each run locked in one), no single run's interval means anything and the interval is
+// the spread of the runs' means (Student t, R - 1 degrees of freedom).
 struct Combined {
   MeanInterval interval;
   bool consistent = true;

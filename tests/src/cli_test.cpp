@@ -107,6 +107,44 @@ TEST_CASE("a run writes its file with provenance and refuses to overwrite it") {
   CHECK(box.pdsim("run --quiet --force '" + deck("tiny_stepped_sine.toml") + "'") == 0);
 }
 
+TEST_CASE("a fixed-duration run reports its means with an interval and claims no steady state") {
+  // A softened shaken box of 60 spheres, 5 periods, the last 4 averaged: too few for the
+  // steady-state test's 4 batches of at least 5 periods, which once gave "+- inf" and
+  // "NOT converged: not results" for a run that asked for no steady state.
+  Sandbox box;
+  std::ofstream(box.dir / "box.toml") << R"([[damper]]
+container = { shape = "box", size = [0.04, 0.04, 0.04] }
+particles = { count = 60, diameter = 0.005, density = 7800.0, fill = "random", seed = 2 }
+[contact]
+model = "hertz"
+young = 2.0e9
+poisson = 0.3
+restitution = 0.5
+friction = 0.3
+[gravity]
+vector = [0.0, 0.0, -9.81]
+[excitation]
+kind = "prescribed"
+motion = { axis = [1.0, 0.0, 0.0], amplitude = 0.004, frequency = 20.0 }
+duration = 0.25
+settle = { average_periods = 4, realisations = 1 }
+[output]
+file = "box.h5"
+)";
+  std::string log;
+  REQUIRE(box.pdsim("run box.toml", &log) == 0);
+  CAPTURE(log);
+  CHECK(log.find("1 frequency, 0.25 s each; power ") != std::string::npos);
+  CHECK(log.find("fixed duration") != std::string::npos);
+  CHECK(log.find("NOT converged") == std::string::npos);
+  CHECK(log.find("inf") == std::string::npos);
+  const pdsim::Results r = pdsim::read_results((box.dir / "box.h5").string());
+  REQUIRE(r.prescribed.frequency.size() == 1);
+  CHECK(std::isfinite(r.prescribed.dissipated_power_ci[0]));
+  CHECK(r.prescribed.dissipated_power_ci[0] > 0);
+  CHECK(r.prescribed.dissipated_power[0] > 0);
+}
+
 TEST_CASE("a stepped sine stopped after one frequency and resumed gives the same results") {
   Sandbox box;
   const std::string tiny = "'" + deck("tiny_stepped_sine.toml") + "'";

@@ -19,8 +19,6 @@
 namespace pdsim {
 namespace {
 
-// Guards against typos (an extra zero), not hardware limits.
-constexpr std::int64_t kMaxParticles = 50'000'000;
 // Beam matrices are dense: 500 elements (1000 DOFs) take about 2 s to set up and solve for
 // their modes; 10000 would need gigabytes.
 constexpr std::int64_t kMaxElements = 500;

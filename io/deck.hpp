@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "kernels/dem_types.hpp"
 #include "src/common.hpp"
 
 namespace pdsim {
@@ -17,8 +18,6 @@ enum class StructureKind { none, sdof, beam };
 enum class Support { clamped, pinned, free };
 enum class ContainerShape { box, cylinder };
 enum class Fill { random, lattice };
-enum class NormalModel { linear, hertz };
-enum class TangentialModel { none, directional, history };
 enum class ExcitationKind { stepped_sine, sine, free_decay, prescribed };
 enum class ExcitationInput { force, base_displacement, base_acceleration };
 // How each stepped-sine frequency starts: `predicted` carries the particles on and puts the
@@ -28,12 +27,6 @@ enum class ExcitationInput { force, base_displacement, base_acceleration };
 // side.
 enum class FrequencyStart { predicted, carried, independent };
 enum class CouplingScheme { loose, interleaved, tight };
-enum class Backend { automatic, cpu, cuda };
-// The name of a backend in decks and on the command line.
-inline const char* backend_name(Backend b) {
-  constexpr const char* names[] = {"auto", "cpu", "cuda"};
-  return names[static_cast<int>(b)];
-}
 enum class IntegratorKind { exact, cvode };
 
 struct BeamSpec {

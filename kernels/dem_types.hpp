@@ -36,6 +36,15 @@ PDSIM_HD double max_of(double a, double b) {
 }
 
 enum class WallShape : int { box = 0, cylinder = 1 };
+// The contact laws and the backend, as the deck names them and the engine is made with.
+enum class NormalModel { linear, hertz };
+enum class TangentialModel { none, directional, history };
+enum class Backend { automatic, cpu, cuda };
+// The name of a backend in decks and on the command line.
+inline const char* backend_name(Backend b) {
+  constexpr const char* names[] = {"auto", "cpu", "cuda"};
+  return names[static_cast<int>(b)];
+}
 
 struct ContainerGeometry {
   Vec3 half_size;     // box: half edge lengths; cylinder: (radius, radius, half height)

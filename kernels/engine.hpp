@@ -6,9 +6,9 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <optional>
 #include <vector>
 
-#include "io/deck.hpp"
 #include "kernels/particle_step.hpp"
 
 namespace pdsim {

@@ -5,7 +5,7 @@
 //  2. particle pass: each particle gathers its pairs' forces in a fixed order (its own slots,
 //     then its reverse list) plus the container walls, and integrates (semi-implicit Euler).
 //     The CPU engine adds pairs within a block of particles to both in its pair pass instead,
-//     and gathers only those from earlier blocks (engine_cpu.cpp).
+//     and gathers only those from earlier blocks (engine_cpu.hpp).
 // Only the particle pass writes the state, each particle its own, after every pair that reads it:
 // the CPU engine advances it in place unless tight coupling re-runs a step from the same input
 // (then, like CUDA, it keeps a second buffer). No pass writes another particle's sums, so no

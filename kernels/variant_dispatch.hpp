@@ -38,30 +38,49 @@ auto by_gravity(const EngineConfig& c, Make&& make) {
   return by_radii<N, T, R, false>(c, make);
 }
 
-template <class N, class T, class Make>
-auto by_rolling(const EngineConfig& c, Make&& make) {
-  if (c.rolling) return by_gravity<N, T, true>(c, make);
-  return by_gravity<N, T, false>(c, make);
+// The laws and the rolling choice, then next.template operator()<N, T, R>().
+template <class N, class T, class Next>
+auto by_rolling(const EngineConfig& c, Next&& next) {
+  if (c.rolling) return next.template operator()<N, T, true>();
+  return next.template operator()<N, T, false>();
 }
 
-template <class N, class Make>
-auto by_tangential(const EngineConfig& c, Make&& make) {
+template <class N, class Next>
+auto by_tangential(const EngineConfig& c, Next&& next) {
   switch (c.tangential) {
     case TangentialModel::none:
-      return by_rolling<N, NoTangential>(c, make);
+      return by_rolling<N, NoTangential>(c, next);
     case TangentialModel::directional:
-      return by_rolling<N, DirectionalCoulomb>(c, make);
+      return by_rolling<N, DirectionalCoulomb>(c, next);
     default:
-      return by_rolling<N, MindlinHistory>(c, make);
+      return by_rolling<N, MindlinHistory>(c, next);
   }
 }
 
+// Carries a choice of the laws and rolling on to the remaining choices.
+template <class Make>
+struct ByGravity {
+  const EngineConfig& c;
+  Make& make;
+  template <class N, class T, bool R>
+  auto operator()() const {
+    return by_gravity<N, T, R>(c, make);
+  }
+};
+
 }  // namespace dispatch_detail
+
+// The first choices only: `next.template operator()<N, T, R>()` with the normal and tangential
+// laws and the rolling flag (the CPU engines are compiled in one translation unit per choice).
+template <class Next>
+auto dispatch_laws(const EngineConfig& c, Next&& next) {
+  if (c.normal == NormalModel::linear) return dispatch_detail::by_tangential<LinearNormal>(c, next);
+  return dispatch_detail::by_tangential<HertzNormal>(c, next);
+}
 
 template <class Make>
 auto dispatch_variant(const EngineConfig& c, Make&& make) {
-  if (c.normal == NormalModel::linear) return dispatch_detail::by_tangential<LinearNormal>(c, make);
-  return dispatch_detail::by_tangential<HertzNormal>(c, make);
+  return dispatch_laws(c, dispatch_detail::ByGravity<Make>{c, make});
 }
 
 template <class V>

@@ -1,6 +1,9 @@
 // OpenMP backend: launches the shared per-particle functions over particle blocks. Totals are
 // reduced per fixed block of particles and then summed in block order, so results are bitwise
-// identical for any thread count.
+// identical for any thread count. Included only by the CMake-generated translation units of
+// engine_cpu_variants.cpp.in, each of which instantiates a share of the variants.
+#pragma once
+
 #include <omp.h>
 
 #include <algorithm>
@@ -13,7 +16,7 @@
 #include "kernels/variant_dispatch.hpp"
 
 namespace pdsim {
-namespace {
+namespace cpu_engine {
 
 constexpr int kBlock = 256;  // particles per reduction block (independent of thread count)
 // Contact batches are padded to whole vector iterations, so that their loops never run a scalar
@@ -902,41 +905,13 @@ struct MakeCpu {
   }
 };
 
-struct NameOf {
-  template <class V>
-  std::string operator()() const {
-    return variant_string<V>();
-  }
-};
+}  // namespace cpu_engine
 
-}  // namespace
-
-std::unique_ptr<DemEngine> make_cpu_engine(const EngineConfig& config) {
-  return dispatch_variant(config, MakeCpu{config});
-}
-
-std::string variant_name(const EngineConfig& config) {
-  return dispatch_variant(config, NameOf{});
-}
-
-#ifndef PDSIM_HAVE_CUDA
-bool cuda_device_available(std::string* description) {
-  if (description) *description = "this pdsim was built without CUDA";
-  return false;
-}
-#endif
-
-std::unique_ptr<DemEngine> make_engine(const EngineConfig& config) {
-  if (config.backend == Backend::cuda) {
-#ifdef PDSIM_HAVE_CUDA
-    if (!cuda_device_available())
-      throw InputError("solver.backend = \"cuda\" but no CUDA device is available");
-    return make_cuda_engine(config);
-#else
-    throw InputError("solver.backend = \"cuda\" but this pdsim was built without CUDA");
-#endif
-  }
-  return make_cpu_engine(config);
+// The CPU engines of the laws N and T and the rolling choice R, for the remaining choices of
+// `config` (engine_cpu.cpp picks this factory, a generated translation unit instantiates it).
+template <class N, class T, bool R>
+std::unique_ptr<DemEngine> make_cpu_engine_of(const EngineConfig& config) {
+  return dispatch_detail::by_gravity<N, T, R>(config, cpu_engine::MakeCpu{config});
 }
 
 }  // namespace pdsim

@@ -1,4 +1,4 @@
-// The OpenMP engine (kernels/cpu/engine_cpu.cpp) on many-particle scenes: energy conservation
+// The OpenMP engine (kernels/cpu/engine_cpu.hpp) on many-particle scenes: energy conservation
 // of an elastic gas, static equilibrium of piles (force balance, overlaps against Hertz), and
 // bitwise reproducibility across thread counts and checkpoints.
 #include "kernels/engine.hpp"

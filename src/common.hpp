@@ -97,4 +97,10 @@ class SimulationError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A run stopped from outside (SIGINT, or a sibling run that failed): not a failure of its own.
+class Interrupted : public SimulationError {
+ public:
+  explicit Interrupted(const std::string& what = "interrupted") : SimulationError(what) {}
+};
+
 }  // namespace pdsim

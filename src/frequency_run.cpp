@@ -44,7 +44,7 @@ BedReport FrequencyRun::settle_bed() {
   const long long most = std::llround(std::ceil(deck_.bed.max_time / dt));
   long long calm = 0, steps = 0;
   while (steps < most && calm < hold) {
-    if (g_stop_runs) throw SimulationError("interrupted");
+    if (g_stop_runs) throw Interrupted();
     report.speed = system_.settle_step(dt);
     calm = report.speed <= deck_.bed.speed ? calm + 1 : 0;
     ++steps;
@@ -88,7 +88,7 @@ void FrequencyRun::jump(Change&& change) {
 }
 
 void FrequencyRun::step() {
-  if (g_stop_runs) throw SimulationError("interrupted");
+  if (g_stop_runs) throw Interrupted();
   // A sample is the state at the start of the step, with the tallies up to it.
   const bool sample = system_.time() + 1e-12 >= next_sample_;
   const Energy state = energy_ && sample ? system_.state_energy() : Energy{};

@@ -121,9 +121,12 @@ int main(int argc, char** argv) {
   } catch (const pdsim::InputError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 1;
+  } catch (const pdsim::Interrupted& e) {
+    std::cerr << "simulation failed: " << e.what() << "\n";
+    return 130;
   } catch (const pdsim::SimulationError& e) {
     std::cerr << "simulation failed: " << e.what() << "\n";
-    return std::string(e.what()).rfind("interrupted", 0) == 0 ? 130 : 2;
+    return 2;
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 2;

@@ -466,7 +466,7 @@ class Driver {
     for (auto& t : threads) t.join();
     if (failure) std::rethrow_exception(failure);
     // A stop that came between tasks (SIGINT) leaves work undone without any task failing.
-    if (g_stop_runs && !stopped_) throw SimulationError("interrupted");
+    if (g_stop_runs && !stopped_) throw Interrupted();
   }
 
   // Dumps the particles of a failed run beside the output and says where.
@@ -474,7 +474,7 @@ class Driver {
   // frequencies) for failed(): a run that blows up in its only segment would otherwise leave
   // nothing but the particle dump.
   [[noreturn]] void fail(const FrequencyRun& run, std::size_t r, const SimulationError& e) {
-    if (g_interrupted || dump_path_.empty() || std::string(e.what()) == "interrupted") throw;
+    if (g_interrupted || dump_path_.empty() || dynamic_cast<const Interrupted*>(&e)) throw;
     run.system().dump(dump_path_);
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -973,9 +973,9 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
                             "\nwhat was computed up to the failure: " + kept);
     }
     if (g_interrupted && !fs::exists(partial))
-      throw SimulationError("interrupted before the first frequency finished; nothing kept");
+      throw Interrupted("interrupted before the first frequency finished; nothing kept");
     if (g_interrupted)
-      throw SimulationError(std::string("interrupted; finished frequencies are in ") + partial +
+      throw Interrupted(std::string("interrupted; finished frequencies are in ") + partial +
                             ", continue with --resume");
     throw;
   }

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <stdexcept>
 #include <utility>
+#include <variant>
 
 namespace pdsim {
 namespace {
@@ -133,6 +134,15 @@ class GroupWriter {
     write_column(group_.get(), path_, name, H5T_STD_I32LE, H5T_NATIVE_INT, values.data(),
                  values.size(), file_, units, description);
   }
+  void column(const std::string& name, const std::vector<std::uint64_t>& values) {
+    write_column(group_.get(), path_, name, H5T_STD_U64LE, H5T_NATIVE_UINT64, values.data(),
+                 values.size(), file_, nullptr, nullptr);
+  }
+  void column(const std::string& name, const std::vector<std::uint8_t>& values) {
+    write_column(group_.get(), path_, name, H5T_STD_U8LE, H5T_NATIVE_UINT8, values.data(),
+                 values.size(), file_, nullptr, nullptr);
+  }
+  hid_t id() const { return group_.get(); }
   // Every column of a table, with its units and description.
   template <class Table, class Columns>
   void table(const Table& t, Columns columns) {
@@ -194,7 +204,10 @@ std::vector<char> file_image(const std::string& file, const Results& r, bool com
     });
   if (!r.checkpoint.empty()) {
     GroupWriter g(h5file.get(), "/checkpoint", file);
-    for (const auto& [name, values] : r.checkpoint) g.column(name, values);
+    write_attribute(g.id(), "format", H5T_STD_I32LE, H5T_NATIVE_INT, &kCheckpointFormat, file,
+                    "/checkpoint");
+    for (const auto& [name, values] : r.checkpoint)
+      std::visit([&g, &name = name](const auto& v) { g.column(name, v); }, values);
   }
   check(H5Fflush(h5file.get(), H5F_SCOPE_LOCAL), file, "flush the file");
   const ssize_t size = check(H5Fget_file_image(h5file.get(), nullptr, 0), file, "size the file");
@@ -341,6 +354,43 @@ class GroupReader {
   hid_t group_;
 };
 
+// The format attribute of /checkpoint; checkpoints written before it had one are format 1.
+int checkpoint_format(hid_t group, const std::string& file) {
+  if (check(H5Aexists(group, "format"), file, "look up /checkpoint/format") <= 0) return 1;
+  const std::string what = "read attribute /checkpoint/format";
+  Handle attribute(H5Aopen(group, "format", H5P_DEFAULT), H5Aclose, file, what);
+  int format = 0;
+  check(H5Aread(attribute.get(), H5T_NATIVE_INT, &format), file, what);
+  return format;
+}
+
+// A checkpoint array in the type it was written with.
+StateArray read_state_array(hid_t group, const std::string& name, const std::string& file) {
+  const std::string what = "read dataset /checkpoint/" + name;
+  H5T_class_t type_class = H5T_NO_CLASS;
+  std::size_t size = 0;
+  bool is_signed = false;
+  {
+    Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose, file, what);
+    Handle type(H5Dget_type(dataset.get()), H5Tclose, file, what);
+    type_class = H5Tget_class(type.get());
+    size = H5Tget_size(type.get());
+    is_signed = type_class == H5T_INTEGER && H5Tget_sign(type.get()) == H5T_SGN_2;
+  }
+  auto read = [&](auto values, hid_t memory_type) -> StateArray {
+    read_column(group, "/checkpoint", name, memory_type, values, file);
+    return values;
+  };
+  if (type_class == H5T_FLOAT) return read(std::vector<double>{}, H5T_NATIVE_DOUBLE);
+  if (type_class == H5T_INTEGER && size == 4 && is_signed)
+    return read(std::vector<std::int32_t>{}, H5T_NATIVE_INT32);
+  if (type_class == H5T_INTEGER && size == 8 && !is_signed)
+    return read(std::vector<std::uint64_t>{}, H5T_NATIVE_UINT64);
+  if (type_class == H5T_INTEGER && size == 1 && !is_signed)
+    return read(std::vector<std::uint8_t>{}, H5T_NATIVE_UINT8);
+  throw std::runtime_error(file + ": /checkpoint/" + name + " has a type no checkpoint uses");
+}
+
 // Calls `read(group_id, reader)` when the group exists; a missing group leaves the fields empty.
 template <typename Read>
 bool read_group(hid_t file_id, const std::string& path, const std::string& file, Read read) {
@@ -425,10 +475,15 @@ Results read_file(const std::string& file) {
              [&](hid_t, const GroupReader& g) { period_columns(r.periods, read_all(g)); });
   read_group(f, "/energy", file,
              [&](hid_t, const GroupReader& g) { energy_columns(r.energy.emplace(), read_all(g)); });
-  read_group(f, "/checkpoint", file, [&](hid_t group, const GroupReader& g) {
-    for (const std::string& name : member_names(group, false, file, "list /checkpoint")) {
-      g.column(name, r.checkpoint[name]);
-    }
+  read_group(f, "/checkpoint", file, [&](hid_t group, const GroupReader&) {
+    const int format = checkpoint_format(group, file);
+    if (format != kCheckpointFormat)
+      throw InputError(file + ": its checkpoint has format " + std::to_string(format) +
+                       (format < kCheckpointFormat ? " (an older pdsim)" : " (a newer pdsim)") +
+                       "; this pdsim reads format " + std::to_string(kCheckpointFormat) +
+                       ": run anew without --resume (or delete the bed file)");
+    for (const std::string& name : member_names(group, false, file, "list /checkpoint"))
+      r.checkpoint[name] = read_state_array(group, name, file);
   });
   h5file.close(file);
   return r;

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "kernels/state_arrays.hpp"
+
 namespace pdsim {
 
 // Each table lists its columns once, with units and meaning, in a *_columns(table, f) function
@@ -155,7 +157,7 @@ struct Results {
   std::optional<EnergySeries> energy;
   // Restart state (named flat arrays), written while a run is in progress so that --resume
   // continues after the last finished frequency. Empty in a finished file.
-  std::map<std::string, std::vector<double>> checkpoint;
+  StateArrays checkpoint;  // format kCheckpointFormat, each array in its own type
 };
 
 // Writes `results` to `path`, or with complete = false to the checkpoint "<path>.partial"

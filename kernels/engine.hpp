@@ -9,7 +9,9 @@
 #include <optional>
 #include <vector>
 
+#include "kernels/neighbours.hpp"
 #include "kernels/particle_step.hpp"
+#include "kernels/state_arrays.hpp"
 
 namespace pdsim {
 
@@ -53,18 +55,38 @@ inline ParticleStepArgs scene_step_args(const EngineConfig& c) {
   a.gravity = c.gravity.value_or(Vec3{});
   return a;
 }
-using StateArrays = std::map<std::string, std::vector<double>>;
-
-// One state among others in a checkpoint: its arrays under a prefix ("damper0.", "bed.r1."), and
-// back.
-inline void put_state(StateArrays& out, const std::string& prefix, const StateArrays& state) {
-  for (const auto& [name, values] : state) out[prefix + name] = values;
+// The cell grid and rebuild policy of an engine's checkpoint, the same for both backends.
+struct GridState {
+  Grid grid{};
+  bool needs_rebuild = true;
+  int max_neighbours = 0;  // slots per particle in the checkpoint's lists
+  double travel = 0;       // m, the particles' largest drift since the last rebuild
+};
+inline void put_grid(StateArrays& out, const GridState& g) {
+  out["grid.origin"] = std::vector<double>{g.grid.origin.x, g.grid.origin.y, g.grid.origin.z};
+  out["grid.cell_size"] = std::vector<double>{g.grid.cell_size};
+  out["grid.cells"] = std::vector<std::int32_t>{g.grid.nx, g.grid.ny, g.grid.nz};
+  out["needs_rebuild"] = std::vector<std::int32_t>{g.needs_rebuild ? 1 : 0};
+  out["max_neighbours"] = std::vector<std::int32_t>{g.max_neighbours};
+  out["travel"] = std::vector<double>{g.travel};
 }
-inline StateArrays get_state(const StateArrays& in, const std::string& prefix) {
-  StateArrays out;
-  for (auto it = in.lower_bound(prefix); it != in.end() && it->first.rfind(prefix, 0) == 0; ++it)
-    out[it->first.substr(prefix.size())] = it->second;
-  return out;
+inline GridState get_grid(const StateArrays& in) {
+  GridState g;
+  const auto& origin = state_values<double>(in, "grid.origin");
+  const auto& cells = state_values<std::int32_t>(in, "grid.cells");
+  if (origin.size() != 3 || cells.size() != 3)
+    throw SimulationError("the checkpoint's grid arrays should hold three values each");
+  g.grid = {{origin[0], origin[1], origin[2]},
+            state_value<double>(in, "grid.cell_size"),
+            cells[0],
+            cells[1],
+            cells[2]};
+  g.needs_rebuild = state_value<std::int32_t>(in, "needs_rebuild") != 0;
+  g.max_neighbours = state_value<std::int32_t>(in, "max_neighbours");
+  if (g.max_neighbours <= 0 || g.max_neighbours % kSlotGroup != 0)
+    throw SimulationError("the checkpoint's max_neighbours is not a whole number of slot groups");
+  g.travel = state_value<double>(in, "travel");
+  return g;
 }
 
 // Contact history as a checkpoint stores it: `slots` slots of 3 values per particle, only those
@@ -82,22 +104,18 @@ std::vector<double> live_history(std::vector<double> history, const std::vector<
 }
 
 // Checkpoints store the lists in the fixed-stride layout (`slots` per particle, the GPU's own),
-// whatever the backend's, so that they move between backends and versions. A reverse entry is
-// stored there as the flat slot owner * slots + k (-1 where unused).
-inline std::vector<double> flat_reverse(const std::vector<std::int32_t>& entries, int slots) {
-  std::vector<double> out(entries.size(), -1.0);
+// whatever the backend's, so that they move between backends. A reverse entry is stored there
+// as the flat slot owner * slots + k (-1 where unused; check_particle_count keeps it in int32).
+inline std::vector<std::int32_t> flat_reverse(const std::vector<std::int32_t>& entries, int slots) {
+  std::vector<std::int32_t> out(entries.size(), -1);
   for (std::size_t r = 0; r < entries.size(); ++r)
-    if (entries[r] >= 0)
-      out[r] = static_cast<double>(entry_owner(entries[r])) * slots + entry_place(entries[r]);
+    if (entries[r] >= 0) out[r] = entry_owner(entries[r]) * slots + entry_place(entries[r]);
   return out;
 }
-inline std::vector<std::int32_t> packed_reverse(const std::vector<double>& flat, int slots) {
+inline std::vector<std::int32_t> packed_reverse(const std::vector<std::int32_t>& flat, int slots) {
   std::vector<std::int32_t> out(flat.size(), -1);
   for (std::size_t r = 0; r < flat.size(); ++r)
-    if (flat[r] >= 0) {
-      const auto s = static_cast<long long>(flat[r]);
-      out[r] = reverse_entry(static_cast<int>(s / slots), static_cast<int>(s % slots));
-    }
+    if (flat[r] >= 0) out[r] = reverse_entry(flat[r] / slots, flat[r] % slots);
   return out;
 }
 

@@ -40,9 +40,10 @@ namespace {
 void carry_with_container(DemEngine& engine, const ContainerKinematics& from,
                           const ContainerKinematics& to) {
   StateArrays state = engine.save();
-  std::vector<double>*x = &state.at("x"), *y = &state.at("y"), *z = &state.at("z");
-  std::vector<double>*vx = &state.at("vx"), *vy = &state.at("vy"), *vz = &state.at("vz");
-  std::vector<double>*wx = &state.at("wx"), *wy = &state.at("wy"), *wz = &state.at("wz");
+  auto array = [&](const char* key) { return &state_values<double>(state, key); };
+  std::vector<double>*x = array("x"), *y = array("y"), *z = array("z");
+  std::vector<double>*vx = array("vx"), *vy = array("vy"), *vz = array("vz");
+  std::vector<double>*wx = array("wx"), *wy = array("wy"), *wz = array("wz");
   // Local frame components of a world vector, and back.
   auto local = [&](Vec3 e) {
     return Vec3{dot(e, from.axis_x), dot(e, from.axis_y), dot(e, from.axis_z)};
@@ -62,7 +63,7 @@ void carry_with_container(DemEngine& engine, const ContainerKinematics& from,
     (*vx)[i] = v_to.x, (*vy)[i] = v_to.y, (*vz)[i] = v_to.z;
     (*wx)[i] = w_to.x, (*wy)[i] = w_to.y, (*wz)[i] = w_to.z;
   }
-  state.at("grid").at(7) = 1.0;  // moved: the neighbour lists are rebuilt
+  state_values<std::int32_t>(state, "needs_rebuild") = {1};  // moved: the lists are rebuilt
   engine.restore(state);
 }
 
@@ -536,12 +537,13 @@ StateArrays CoupledSystem::save() const {
   for (std::size_t k = 0; k < engines_.size(); ++k)
     put_state(out, "damper" + std::to_string(k) + ".", engines_[k]->save());
   if (integrator_) {
-    out["structure.q"].assign(integrator_->q.data(), integrator_->q.data() + integrator_->q.size());
-    out["structure.v"].assign(integrator_->v.data(), integrator_->v.data() + integrator_->v.size());
+    const Eigen::VectorXd &q = integrator_->q, &v = integrator_->v;
+    out["structure.q"] = std::vector<double>(q.data(), q.data() + q.size());
+    out["structure.v"] = std::vector<double>(v.data(), v.data() + v.size());
   }
   out["spring_energy"] = spring_energy_;
-  out["time"] = {time_};
-  out["particle_steps"] = {static_cast<double>(particle_steps_)};
+  out["time"] = std::vector<double>{time_};
+  out["particle_steps"] = std::vector<std::uint64_t>{static_cast<std::uint64_t>(particle_steps_)};
   return out;
 }
 
@@ -549,15 +551,14 @@ void CoupledSystem::restore(const StateArrays& state) {
   for (std::size_t k = 0; k < engines_.size(); ++k)
     engines_[k]->restore(get_state(state, "damper" + std::to_string(k) + "."));
   if (integrator_) {
-    const auto& q = state.at("structure.q");
-    const auto& v = state.at("structure.v");
+    const auto& q = state_values<double>(state, "structure.q");
+    const auto& v = state_values<double>(state, "structure.v");
     integrator_->q = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<int>(q.size()));
     integrator_->v = Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<int>(v.size()));
   }
-  // Checkpoints before ended contacts were tallied: an error of one step's releases.
-  if (const auto it = state.find("spring_energy"); it != state.end()) spring_energy_ = it->second;
-  time_ = state.at("time").at(0);
-  particle_steps_ = static_cast<long long>(state.at("particle_steps").at(0));
+  spring_energy_ = state_values<double>(state, "spring_energy");
+  time_ = state_value<double>(state, "time");
+  particle_steps_ = static_cast<long long>(state_value<std::uint64_t>(state, "particle_steps"));
   pending_ = false;
 }
 

@@ -263,13 +263,14 @@ void FrequencyRun::run_free_decay() {
 StateArrays FrequencyRun::save() const {
   StateArrays out = system_.save();
   const Drive& d = system_.drive();
-  out["run.tallies"] = {dissipated_n_,
-                        dissipated_t_,
-                        work_in_,
-                        next_sample_,
-                        d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0,
-                        dissipated_r_,
-                        dissipated_s_};
+  out["run.tallies"] =
+      std::vector<double>{dissipated_n_,
+                          dissipated_t_,
+                          work_in_,
+                          next_sample_,
+                          d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0,
+                          dissipated_r_,
+                          dissipated_s_};
   out["run.effective_mass"] = effective_mass_;
   out["run.effective_damping"] = effective_damping_;
   out["run.mean_force"] = mean_force_;
@@ -278,18 +279,19 @@ StateArrays FrequencyRun::save() const {
 
 void FrequencyRun::restore(const StateArrays& state) {
   system_.restore(state);
-  const auto& t = state.at("run.tallies");
-  dissipated_n_ = t.at(0);
-  dissipated_t_ = t.at(1);
-  work_in_ = t.at(2);
-  next_sample_ = t.at(3);
-  restored_angle_ = t.at(4);
-  dissipated_r_ = t.size() > 5 ? t.at(5) : 0.0;  // checkpoints before rolling was tallied
-  dissipated_s_ = t.size() > 6 ? t.at(6) : 0.0;  // before structural damping was
+  const auto& t = state_values<double>(state, "run.tallies");
+  if (t.size() != 7) throw SimulationError("the checkpoint's run.tallies should hold 7 values");
+  dissipated_n_ = t[0];
+  dissipated_t_ = t[1];
+  work_in_ = t[2];
+  next_sample_ = t[3];
+  restored_angle_ = t[4];
+  dissipated_r_ = t[5];
+  dissipated_s_ = t[6];
   restored_ = true;
-  effective_mass_ = state.at("run.effective_mass");
-  effective_damping_ = state.at("run.effective_damping");
-  mean_force_ = state.at("run.mean_force");
+  effective_mass_ = state_values<double>(state, "run.effective_mass");
+  effective_damping_ = state_values<double>(state, "run.effective_damping");
+  mean_force_ = state_values<double>(state, "run.mean_force");
 }
 
 }  // namespace pdsim

@@ -341,8 +341,8 @@ class Driver {
       reports_[r] = unpack_report(c, r);
       for (std::size_t i = 0; i < frequencies_.size(); ++i)
         if (const auto it = c.find(point_key(r, i)); it != c.end()) {
-          points_[r][i] = unpack(it->second);
-          unpack_periods(c.at(point_key(r, i) + ".periods"), *points_[r][i]);
+          points_[r][i] = unpack(state_values<double>(c, point_key(r, i)));
+          unpack_periods(state_values<double>(c, point_key(r, i) + ".periods"), *points_[r][i]);
         }
     }
     for (std::size_t r = 0; r < scenes_.size(); ++r)
@@ -364,7 +364,7 @@ class Driver {
         });
       }
     }
-    const auto& totals = c.at("run.totals");
+    const auto& totals = state_values<double>(c, "run.totals");
     particle_steps_ = static_cast<long long>(totals.at(0));
     simulated_ = totals.at(1);
     wall_before_ = totals.at(2);
@@ -501,10 +501,9 @@ class Driver {
     c["bed.reports"] = reports;
   }
   static BedReport unpack_report(const StateArrays& c, std::size_t r) {
-    const auto it = c.find("bed.reports");
-    if (it == c.end() || it->second.size() < 4 * (r + 1))
-      throw InputError("the checkpoint or bed file was written by an older pdsim; delete it");
-    const std::vector<double>& v = it->second;
+    const std::vector<double>& v = state_values<double>(c, "bed.reports");
+    if (v.size() < 4 * (r + 1))
+      throw SimulationError("the checkpoint's bed.reports should hold 4 values a realisation");
     return {v[4 * r] != 0, v[4 * r + 1] != 0, v[4 * r + 2], v[4 * r + 3]};
   }
 
@@ -637,7 +636,7 @@ class Driver {
     add_rows(snapshot);  // the finished frequencies are readable (and plottable) in the .partial
     StateArrays& c = snapshot.checkpoint;
     put_beds(c);
-    if (bed_from_file_) c["bed.from_file"] = {1};
+    if (bed_from_file_) c["bed.from_file"] = std::vector<std::int32_t>{1};
     for (std::size_t k = 0; k < scenes_.size(); ++k)
       for (std::size_t f = 0; f < frequencies_.size(); ++f)
         if (points_[k][f]) {
@@ -649,7 +648,7 @@ class Driver {
       for (const auto& [k, state] : task_states_)
         put_state(c, "task.r" + std::to_string(k) + ".", state);
     }
-    c["run.totals"] = {
+    c["run.totals"] = std::vector<double>{
         double(particle_steps_), simulated_,
         wall_before_ + std::chrono::duration<double>(Clock::now() - started_).count()};
     provenance(snapshot);
@@ -976,7 +975,7 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
       throw Interrupted("interrupted before the first frequency finished; nothing kept");
     if (g_interrupted)
       throw Interrupted(std::string("interrupted; finished frequencies are in ") + partial +
-                            ", continue with --resume");
+                        ", continue with --resume");
     throw;
   }
   if (driver.stopped())

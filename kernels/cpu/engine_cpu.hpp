@@ -585,7 +585,7 @@ class CpuEngine final : public DemEngine {
     const StateBuffer& s = state_[current_];
     const char* names[9] = {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"};
     for (int k = 0; k < 9; ++k) out[names[k]] = *s.all[k];
-    out["id"].assign(id_.begin(), id_.end());
+    out["id"] = id_;
     out["radius"] = radius_;
     const HistoryBuffer& h = history_[history_current_];
     // The checkpoint layout: max_neighbours_ slots per particle (see flat_reverse()).
@@ -604,68 +604,39 @@ class CpuEngine final : public DemEngine {
     }
     out["history"] = std::move(history);
     out["wall_history"] = live_history(h.wall, h.wall_mask, kWallSlots);
-    out["wall_mask"].assign(h.wall_mask.begin(), h.wall_mask.end());
-    auto& mask_lo = out["mask_lo"];
-    auto& mask_hi = out["mask_hi"];
-    for (std::uint64_t m : h.neighbour_mask) {
-      mask_lo.push_back(static_cast<double>(m & 0xffffffffu));
-      mask_hi.push_back(static_cast<double>(m >> 32));
-    }
-    out["neighbours"].assign(neighbours.begin(), neighbours.end());
-    out["partner_id"].assign(partner.begin(), partner.end());
-    out["neighbour_count"].assign(neighbour_count_.begin(), neighbour_count_.end());
+    out["wall_mask"] = h.wall_mask;
+    out["neighbour_mask"] = h.neighbour_mask;
+    out["neighbours"] = std::move(neighbours);
+    out["partner_id"] = std::move(partner);
+    out["neighbour_count"] = neighbour_count_;
     out["reverse"] = flat_reverse(reverse, max_neighbours_);
-    out["reverse_count"].assign(reverse_count_.begin(), reverse_count_.end());
-    out["grid"] = {grid_.origin.x,
-                   grid_.origin.y,
-                   grid_.origin.z,
-                   grid_.cell_size,
-                   static_cast<double>(grid_.nx),
-                   static_cast<double>(grid_.ny),
-                   static_cast<double>(grid_.nz),
-                   needs_rebuild_ ? 1.0 : 0.0,
-                   static_cast<double>(max_neighbours_),
-                   travel_};
+    out["reverse_count"] = reverse_count_;
+    put_grid(out, {grid_, needs_rebuild_, max_neighbours_, travel_});
     return out;
   }
 
   void restore(const StateArrays& in) override {
-    auto get = [&](const char* key) -> const std::vector<double>& {
-      const auto it = in.find(key);
-      if (it == in.end()) throw SimulationError(std::string("checkpoint lacks DEM array ") + key);
-      return it->second;
-    };
-    const std::vector<double>& grid = get("grid");
-    // Older checkpoints hold full neighbour lists (each pair twice), unpadded.
-    if (in.count("reverse") == 0 || grid.size() != 10 ||
-        static_cast<int>(grid[8]) % kSlotGroup != 0)
-      throw SimulationError(
-          "checkpoint written by an older pdsim (full neighbour lists); rerun without --resume");
-    max_neighbours_ = static_cast<int>(grid[8]);
+    const GridState g = get_grid(in);
+    max_neighbours_ = g.max_neighbours;
     set_particles(config_.particles);  // sizes every array for max_neighbours_
     StateBuffer& s = state_[current_];
     const char* names[9] = {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"};
-    for (int k = 0; k < 9; ++k) *s.all[k] = get(names[k]);
-    auto to_int = [](const std::vector<double>& a, auto& out) { out.assign(a.begin(), a.end()); };
-    to_int(get("id"), id_);
-    radius_ = get("radius");
+    for (int k = 0; k < 9; ++k) *s.all[k] = state_values<double>(in, names[k]);
+    id_ = state_values<std::int32_t>(in, "id");
+    radius_ = state_values<double>(in, "radius");
     set_mass_properties();
     HistoryBuffer& h = history_[history_current_];
-    h.wall = get("wall_history");
-    to_int(get("wall_mask"), h.wall_mask);
-    const auto& lo = get("mask_lo");
-    const auto& hi = get("mask_hi");
-    for (std::size_t i = 0; i < lo.size(); ++i)
-      h.neighbour_mask[i] = static_cast<std::uint64_t>(lo[i]) | static_cast<std::uint64_t>(hi[i])
-                                                                    << 32;
+    h.wall = state_values<double>(in, "wall_history");
+    h.wall_mask = state_values<std::uint8_t>(in, "wall_mask");
+    h.neighbour_mask = state_values<std::uint64_t>(in, "neighbour_mask");
     // From the checkpoint layout (max_neighbours_ slots per particle) to the compact one.
-    to_int(get("neighbour_count"), neighbour_count_);
-    to_int(get("reverse_count"), reverse_count_);
-    std::vector<std::int32_t> neighbours, partner;
-    to_int(get("neighbours"), neighbours);
-    to_int(get("partner_id"), partner);
-    const std::vector<std::int32_t> reverse = packed_reverse(get("reverse"), max_neighbours_);
-    const std::vector<double>& history = get("history");
+    neighbour_count_ = state_values<std::int32_t>(in, "neighbour_count");
+    reverse_count_ = state_values<std::int32_t>(in, "reverse_count");
+    const auto& neighbours = state_values<std::int32_t>(in, "neighbours");
+    const auto& partner = state_values<std::int32_t>(in, "partner_id");
+    const std::vector<std::int32_t> reverse =
+        packed_reverse(state_values<std::int32_t>(in, "reverse"), max_neighbours_);
+    const std::vector<double>& history = state_values<double>(in, "history");
     set_slot_starts();
     set_reverse_starts();
     for (int i = 0; i < count_; ++i) {
@@ -676,13 +647,9 @@ class CpuEngine final : public DemEngine {
       std::copy_n(&reverse[from], reverse_count_[i], &reverse_[reverse_start_[i]]);
       if (V::Tangential::kHistory) std::copy_n(&history[3 * from], 3 * n, &h.neighbour[3 * to]);
     }
-    travel_ = grid.at(9);
-    grid_ = {{grid[0], grid[1], grid[2]},
-             grid[3],
-             static_cast<int>(grid[4]),
-             static_cast<int>(grid[5]),
-             static_cast<int>(grid[6])};
-    needs_rebuild_ = grid[7] != 0.0;
+    travel_ = g.travel;
+    grid_ = g.grid;
+    needs_rebuild_ = g.needs_rebuild;
   }
 
   // Memory held now: the lists take what the last build needed (nothing before the first step).

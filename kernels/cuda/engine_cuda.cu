@@ -408,89 +408,55 @@ class CudaEngine final : public DemEngine {
     StateArrays out;
     const DeviceState& s = state_[current_];
     for (int k = 0; k < 9; ++k) out[kStateNames[k]] = s.all[k]->download(stream_);
-    auto as_doubles = [](const auto& v) { return std::vector<double>(v.begin(), v.end()); };
-    out["id"] = as_doubles(id_.download(stream_));
+    out["id"] = id_.download(stream_);
     out["radius"] = radius_.download(stream_);
     const DeviceHistory& h = history_[current_];
-    const std::vector<std::uint64_t> neighbour_mask = h.neighbour_mask.download(stream_);
-    const std::vector<std::uint8_t> wall_mask = h.wall_mask.download(stream_);
+    std::vector<std::uint64_t> neighbour_mask = h.neighbour_mask.download(stream_);
+    std::vector<std::uint8_t> wall_mask = h.wall_mask.download(stream_);
     out["history"] = live_history(h.neighbour.download(stream_), neighbour_mask, max_neighbours_);
     out["wall_history"] = live_history(h.wall.download(stream_), wall_mask, kWallSlots);
-    out["wall_mask"] = as_doubles(wall_mask);
-    auto& mask_lo = out["mask_lo"];
-    auto& mask_hi = out["mask_hi"];
-    for (std::uint64_t m : neighbour_mask) {
-      mask_lo.push_back(static_cast<double>(m & 0xffffffffu));
-      mask_hi.push_back(static_cast<double>(m >> 32));
-    }
-    out["neighbours"] = as_doubles(neighbours_.download(stream_));
-    out["partner_id"] = as_doubles(partner_id_.download(stream_));
-    out["neighbour_count"] = as_doubles(neighbour_count_.download(stream_));
+    out["wall_mask"] = std::move(wall_mask);
+    out["neighbour_mask"] = std::move(neighbour_mask);
+    out["neighbours"] = neighbours_.download(stream_);
+    out["partner_id"] = partner_id_.download(stream_);
+    out["neighbour_count"] = neighbour_count_.download(stream_);
     out["reverse"] = flat_reverse(reverse_.download(stream_), max_neighbours_);
-    out["reverse_count"] = as_doubles(reverse_count_.download(stream_));
-    out["grid"] = {grid_.origin.x,
-                   grid_.origin.y,
-                   grid_.origin.z,
-                   grid_.cell_size,
-                   static_cast<double>(grid_.nx),
-                   static_cast<double>(grid_.ny),
-                   static_cast<double>(grid_.nz),
-                   needs_rebuild_ ? 1.0 : 0.0,
-                   static_cast<double>(max_neighbours_),
-                   travel_};
+    out["reverse_count"] = reverse_count_.download(stream_);
+    put_grid(out, {grid_, needs_rebuild_, max_neighbours_, travel_});
     return out;
   }
 
   void restore(const StateArrays& in) override {
-    auto get = [&](const char* key) -> const std::vector<double>& {
-      const auto it = in.find(key);
-      if (it == in.end()) throw SimulationError(std::string("checkpoint lacks DEM array ") + key);
-      return it->second;
-    };
-    auto to_int = [](const std::vector<double>& a, auto tag) {
-      return std::vector<decltype(tag)>(a.begin(), a.end());
-    };
-    const std::vector<double>& grid = get("grid");
-    // Older checkpoints hold full neighbour lists (each pair twice), unpadded.
-    if (in.count("reverse") == 0 || grid.size() != 10 ||
-        static_cast<int>(grid[8]) % kSlotGroup != 0)
-      throw SimulationError(
-          "checkpoint written by an older pdsim (full neighbour lists); rerun without --resume");
-    max_neighbours_ = static_cast<int>(grid[8]);
+    const GridState g = get_grid(in);
+    max_neighbours_ = g.max_neighbours;
     size_neighbour_arrays();
     const cudaStream_t stream = stream_.get();
     DeviceState& s = state_[current_];
-    for (int k = 0; k < 9; ++k) s.all[k]->upload(get(kStateNames[k]), stream, kStateNames[k]);
-    id_.upload(to_int(get("id"), std::int32_t{}), stream, "id");
-    radius_host_ = get("radius");
+    for (int k = 0; k < 9; ++k)
+      s.all[k]->upload(state_values<double>(in, kStateNames[k]), stream, kStateNames[k]);
+    id_.upload(state_values<std::int32_t>(in, "id"), stream, "id");
+    radius_host_ = state_values<double>(in, "radius");
     if (radius_host_.size() != static_cast<std::size_t>(count_))
       throw SimulationError("checkpoint DEM array 'radius' does not match the particle count");
     upload_particle_constants();
     clear_history();
     DeviceHistory& h = history_[current_];
-    h.neighbour.upload(get("history"), stream, "history");
-    h.wall.upload(get("wall_history"), stream, "wall_history");
-    h.wall_mask.upload(to_int(get("wall_mask"), std::uint8_t{}), stream, "wall_mask");
-    const auto& lo = get("mask_lo");
-    const auto& hi = get("mask_hi");
-    std::vector<std::uint64_t> mask(lo.size());
-    for (std::size_t i = 0; i < lo.size() && i < hi.size(); ++i)
-      mask[i] = static_cast<std::uint64_t>(lo[i]) | static_cast<std::uint64_t>(hi[i]) << 32;
-    h.neighbour_mask.upload(mask, stream, "mask_lo");
-    neighbours_.upload(to_int(get("neighbours"), std::int32_t{}), stream, "neighbours");
-    partner_id_.upload(to_int(get("partner_id"), std::int32_t{}), stream, "partner_id");
-    neighbour_count_.upload(to_int(get("neighbour_count"), std::int32_t{}), stream,
+    h.neighbour.upload(state_values<double>(in, "history"), stream, "history");
+    h.wall.upload(state_values<double>(in, "wall_history"), stream, "wall_history");
+    h.wall_mask.upload(state_values<std::uint8_t>(in, "wall_mask"), stream, "wall_mask");
+    h.neighbour_mask.upload(state_values<std::uint64_t>(in, "neighbour_mask"), stream,
+                            "neighbour_mask");
+    neighbours_.upload(state_values<std::int32_t>(in, "neighbours"), stream, "neighbours");
+    partner_id_.upload(state_values<std::int32_t>(in, "partner_id"), stream, "partner_id");
+    neighbour_count_.upload(state_values<std::int32_t>(in, "neighbour_count"), stream,
                             "neighbour_count");
-    reverse_.upload(packed_reverse(get("reverse"), max_neighbours_), stream, "reverse");
-    reverse_count_.upload(to_int(get("reverse_count"), std::int32_t{}), stream, "reverse_count");
-    needs_rebuild_ = grid[7] != 0.0;
+    reverse_.upload(packed_reverse(state_values<std::int32_t>(in, "reverse"), max_neighbours_),
+                    stream, "reverse");
+    reverse_count_.upload(state_values<std::int32_t>(in, "reverse_count"), stream, "reverse_count");
+    needs_rebuild_ = g.needs_rebuild;
     overflow_.fill_bytes(0, stream);
-    travel_ = grid[9];
-    grid_ = {{grid[0], grid[1], grid[2]},
-             grid[3],
-             static_cast<int>(grid[4]),
-             static_cast<int>(grid[5]),
-             static_cast<int>(grid[6])};
+    travel_ = g.travel;
+    grid_ = g.grid;
     stream_.synchronize();
   }
 

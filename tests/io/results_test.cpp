@@ -1,6 +1,7 @@
 #include "io/results.hpp"
 
 #include <doctest/doctest.h>
+#include <hdf5.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -71,9 +72,12 @@ Results full_results() {
   pdsim::prescribed_columns(r.prescribed, fill);
   pdsim::period_columns(r.periods, fill);
   pdsim::energy_columns(r.energy.emplace(), fill);
-  r.checkpoint = {{"structure_state", {1e-3, -2e-4, 0.5}},
+  r.checkpoint = {{"structure_state", std::vector<double>{1e-3, -2e-4, 0.5}},
                   {"particle_positions", awkward(11)},
-                  {"rng_state", {}}};
+                  {"rng_state", std::vector<double>{}},
+                  {"id", std::vector<std::int32_t>{0, -1, 2147483647}},
+                  {"mask", std::vector<std::uint64_t>{0, 1, 0xffffffffffffffffu}},
+                  {"wall_mask", std::vector<std::uint8_t>{0, 63, 255}}};
   return r;
 }
 
@@ -155,6 +159,27 @@ TEST_CASE("results: groups with no data are not written and read back empty") {
   CHECK(read.prescribed.frequency.empty());
   CHECK_FALSE(read.energy.has_value());
   CHECK(read.checkpoint.empty());
+  fs::remove_all(dir);
+}
+
+TEST_CASE("results: a checkpoint of another format is refused, naming the file and the formats") {
+  const fs::path dir = scratch_dir("format");
+  const fs::path path = dir / "run.h5";
+  const fs::path partial = dir / "run.h5.partial";
+  pdsim::write_results(path.string(), full_results(), false);
+  // What a pdsim before typed checkpoints wrote: no format attribute.
+  const hid_t file = H5Fopen(partial.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  REQUIRE(file >= 0);
+  const hid_t group = H5Gopen2(file, "/checkpoint", H5P_DEFAULT);
+  REQUIRE(group >= 0);
+  CHECK(H5Adelete(group, "format") >= 0);
+  H5Gclose(group);
+  H5Fclose(file);
+  const std::string expected = partial.string() +
+                               ": its checkpoint has format 1 (an older pdsim); this pdsim reads "
+                               "format 2: run anew without --resume";
+  CHECK_THROWS_WITH_AS(pdsim::read_results(partial.string()), doctest::Contains(expected.c_str()),
+                       pdsim::InputError);
   fs::remove_all(dir);
 }
 

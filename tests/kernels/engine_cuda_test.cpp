@@ -226,7 +226,7 @@ TEST_CASE("two cuda runs are bitwise identical") {
   const Trace b = advance(*second, 0, 1000);
   const StateArrays saved_a = first->save();
   const StateArrays saved_b = second->save();
-  for (const char* key : {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "mask_lo"}) {
+  for (const char* key : {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "neighbour_mask"}) {
     CAPTURE(key);
     CHECK(saved_a.at(key) == saved_b.at(key));
   }

@@ -134,13 +134,15 @@ class GroupWriter {
     write_column(group_.get(), path_, name, H5T_STD_I32LE, H5T_NATIVE_INT, values.data(),
                  values.size(), file_, units, description);
   }
-  void column(const std::string& name, const std::vector<std::uint64_t>& values) {
+  void column(const std::string& name, const std::vector<std::uint64_t>& values,
+              const char* units = nullptr, const char* description = nullptr) {
     write_column(group_.get(), path_, name, H5T_STD_U64LE, H5T_NATIVE_UINT64, values.data(),
-                 values.size(), file_, nullptr, nullptr);
+                 values.size(), file_, units, description);
   }
-  void column(const std::string& name, const std::vector<std::uint8_t>& values) {
+  void column(const std::string& name, const std::vector<std::uint8_t>& values,
+              const char* units = nullptr, const char* description = nullptr) {
     write_column(group_.get(), path_, name, H5T_STD_U8LE, H5T_NATIVE_UINT8, values.data(),
-                 values.size(), file_, nullptr, nullptr);
+                 values.size(), file_, units, description);
   }
   hid_t id() const { return group_.get(); }
   // Every column of a table, with its units and description.
@@ -206,8 +208,14 @@ std::vector<char> file_image(const std::string& file, const Results& r, bool com
     GroupWriter g(h5file.get(), "/checkpoint", file);
     write_attribute(g.id(), "format", H5T_STD_I32LE, H5T_NATIVE_INT, &kCheckpointFormat, file,
                     "/checkpoint");
+    // Restart state in the engines' own units and layouts, read back only by pdsim.
     for (const auto& [name, values] : r.checkpoint)
-      std::visit([&g, &name = name](const auto& v) { g.column(name, v); }, values);
+      std::visit(
+          [&g, &name = name](const auto& v) {
+            g.column(name, v, "internal",
+                     "restart state for --resume (kernels/state_arrays.hpp), not a result");
+          },
+          values);
   }
   check(H5Fflush(h5file.get(), H5F_SCOPE_LOCAL), file, "flush the file");
   const ssize_t size = check(H5Fget_file_image(h5file.get(), nullptr, 0), file, "size the file");

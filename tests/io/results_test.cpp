@@ -162,6 +162,54 @@ TEST_CASE("results: groups with no data are not written and read back empty") {
   fs::remove_all(dir);
 }
 
+// Every dataset under `location`, walked through the HDF5 links: those without a units attribute.
+std::vector<std::string> datasets_without_units(hid_t location, std::size_t* datasets) {
+  struct Walk {
+    std::vector<std::string> missing;
+    std::size_t datasets = 0;
+  } walk;
+  auto visit = [](hid_t group, const char* name, const H5L_info_t*, void* data) -> herr_t {
+    Walk& w = *static_cast<Walk*>(data);
+    const hid_t object = H5Oopen(group, name, H5P_DEFAULT);
+    if (object < 0) return -1;
+    if (H5Iget_type(object) == H5I_DATASET) {
+      ++w.datasets;
+      if (H5Aexists(object, "units") <= 0) w.missing.push_back(name);
+    }
+    H5Oclose(object);
+    return 0;
+  };
+  H5Lvisit(location, H5_INDEX_NAME, H5_ITER_INC, visit, &walk);
+  *datasets = walk.datasets;
+  return walk.missing;
+}
+
+TEST_CASE("results: every dataset of a file, checkpoint included, has a units attribute") {
+  const fs::path dir = scratch_dir("units");
+  const fs::path path = dir / "run.h5";
+  pdsim::write_results(path.string(), full_results(), false);  // the .partial, with checkpoint
+  const hid_t file = H5Fopen((dir / "run.h5.partial").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(file >= 0);
+  std::size_t datasets = 0;
+  const std::vector<std::string> missing = datasets_without_units(file, &datasets);
+  H5Fclose(file);
+  CHECK(datasets >= 50);  // the walk saw the tables and the checkpoint
+  for (const std::string& name : missing) CHECK_MESSAGE(false, name << " has no units");
+  // Negative control: a dataset written without units is found.
+  const hid_t bare = H5Fcreate((dir / "bare.h5").c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  const hsize_t one = 1;
+  const hid_t space = H5Screate_simple(1, &one, nullptr);
+  const hid_t group = H5Gcreate2(bare, "g", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  const hid_t dataset =
+      H5Dcreate2(group, "x", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  H5Dclose(dataset);
+  H5Gclose(group);
+  H5Sclose(space);
+  CHECK(datasets_without_units(bare, &datasets) == std::vector<std::string>{"g/x"});
+  H5Fclose(bare);
+  fs::remove_all(dir);
+}
+
 TEST_CASE("results: a checkpoint of another format is refused, naming the file and the formats") {
   const fs::path dir = scratch_dir("format");
   const fs::path path = dir / "run.h5";

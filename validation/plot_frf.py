@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Plot stepped-sine frequency responses (/frf) of pdsim runs, optionally against a measured curve.
 
-Usage: validation/plot_frf.py OUT.h5 [OTHER.h5 ...] [--measured CSV] [-o frf.png]
+Usage: validation/plot_frf.py OUT.h5 [OTHER.h5 ...] [--measured CSV] [--receptance] [--bare]
+                              [-o frf.png]
+(also `validation/plot.py frf ...`, with the other plots of a result)
 
 Draws two stacked panels sharing the frequency axis (Hz): the first-harmonic displacement
 amplitude (mm, /frf/amplitude) and its phase against the input sin(angle) (rad, /frf/phase, as
@@ -23,6 +25,11 @@ half-width, e.g. "peak amplitude 1.408 ± 0.012 mm at 15 Hz (converged points on
 "no converged point". A file without /frf (e.g. a prescribed-motion result, /prescribed) is an
 error (exit status 1).
 
+--receptance: amplitude per newton of drive (m/N, /meta/deck's excitation.amplitude), for
+force input only; files driven otherwise are an error.
+--bare: the bare structure's analytic response (single-DOF structures under force input, from
+the first file's deck: mass, stiffness and damping), drawn as a thin black line.
+
 --measured CSV: a digitised measured curve (e.g. Saeki 2002, fig. 5b), plain text, comma
 separated, first line exactly the header `frequency_hz,amplitude_m`, then one point per line
 in SI units (Hz, m, amplitude > 0); lines starting with '#' are comments. Example:
@@ -36,8 +43,10 @@ linearly at the measured frequencies between the file's converged points only; m
 outside the frequency range of the converged points are left out and counted.
 """
 import argparse
+import math
 import os
 import sys
+import tomllib
 
 import matplotlib
 
@@ -102,6 +111,39 @@ def read_frf(path):
     data["converged"] = data["converged"].astype(bool)
     data["label"] = (title or os.path.basename(path)) + (f" (start: {start})" if start else "")
     return data
+
+
+def deck_of(path):
+    """The deck a result was run from (/meta/deck), parsed."""
+    with h5py.File(path, "r") as h5:
+        text_ = text(h5["meta"].attrs.get("deck", "")) if "meta" in h5 else ""
+    try:
+        return tomllib.loads(text_)
+    except tomllib.TOMLDecodeError as error:
+        sys.exit(f"plot_frf.py: {path}: /meta/deck does not parse: {error}")
+
+
+def force_amplitude(path):
+    """The drive's force amplitude (N) of a force-driven result; exits for other inputs."""
+    excitation = deck_of(path).get("excitation", {})
+    if excitation.get("input", "force") != "force":
+        sys.exit(f"plot_frf.py: {path}: --receptance needs input = \"force\", the deck has "
+                 f"input = \"{excitation.get('input')}\"")
+    return float(excitation["amplitude"])
+
+
+def bare_response(path, frequency):
+    """Amplitude (m) and phase (rad) of the bare single-DOF structure under the file's force."""
+    deck = deck_of(path)
+    structure, excitation = deck.get("structure", {}), deck.get("excitation", {})
+    if structure.get("kind") != "sdof" or excitation.get("input", "force") != "force":
+        sys.exit(f"plot_frf.py: {path}: --bare needs a single-DOF structure under force input")
+    mass, stiffness = float(structure["mass"]), float(structure["stiffness"])
+    damping = float(structure.get("damping", 2 * float(structure.get("damping_ratio", 0.0))
+                                  * math.sqrt(stiffness * mass)))
+    w = 2 * np.pi * frequency
+    h = float(excitation["amplitude"]) / (stiffness - mass * w**2 + 1j * damping * w)
+    return np.abs(h), np.angle(h)
 
 
 def realisation_means(h5, frequency, interval):
@@ -185,13 +227,17 @@ def print_peak(path, data):
           f"{data['frequency'][peak]:.4g} Hz (converged points only)")
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="plot_frf.py", description=__doc__.splitlines()[0])
     parser.add_argument("files", nargs="+", help="pdsim HDF5 outputs with an /frf group")
     parser.add_argument("--measured", help=f"digitised measured curve, CSV with header {HEADER}")
+    parser.add_argument("--receptance", action="store_true",
+                        help="amplitude per newton of drive, m/N (force input only)")
+    parser.add_argument("--bare", action="store_true",
+                        help="draw the bare single-DOF structure's analytic response")
     parser.add_argument("-o", "--output", default="frf.png",
                         help="image to write; .png (200 dpi), .pdf or .svg")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     extension = os.path.splitext(args.output)[1].lower()
     if extension not in FORMATS:
         sys.exit(f"plot_frf.py: {args.output}: the output must end in {', '.join(FORMATS)}")
@@ -199,17 +245,27 @@ def main():
     measured = read_measured(args.measured) if args.measured else None
     figure, (amplitude_axes, phase_axes) = plt.subplots(2, 1, sharex=True, figsize=(7, 6.5))
     any_unconverged = any_disagree = False
+    # Displacement in mm, or receptance in um/N (the same numbers per newton).
+    unit = "receptance (\u00b5m/N)" if args.receptance else "displacement amplitude (mm)"
     for index, path in enumerate(args.files):
         data = read_frf(path)
         frequency, converged = data["frequency"], data["converged"]
         color = f"C{index % 10}"
         ci = data["amplitude_ci"]
-        plot_panel(amplitude_axes, frequency, data["amplitude"] * 1e3,
-                   None if ci is None else ci * 1e3, converged, color, data["label"])
+        scale = 1e6 / force_amplitude(path) if args.receptance else 1e3
+        plot_panel(amplitude_axes, frequency, data["amplitude"] * scale,
+                   None if ci is None else ci * scale, converged, color, data["label"])
+        if args.bare and index == 0:
+            dense = np.linspace(frequency.min(), frequency.max(), 400)
+            amplitude, phase = bare_response(path, dense)
+            bare_scale = 1e6 / force_amplitude(path) if args.receptance else 1e3
+            amplitude_axes.plot(dense, amplitude * bare_scale, "k-", lw=0.8,
+                                label="bare structure (analytic)")
+            phase_axes.plot(dense, phase, "k-", lw=0.8)
         plot_panel(phase_axes, frequency, data["phase"], data["phase_ci"], converged, color, None)
         any_unconverged |= bool((~converged).any())
         for f, amplitude, phase in data["runs"]:
-            amplitude_axes.plot(f, amplitude * 1e3, "x", ms=4, color=color)
+            amplitude_axes.plot(f, amplitude * scale, "x", ms=4, color=color)
             phase_axes.plot(f, phase, "x", ms=4, color=color)
         any_disagree = any_disagree or bool(data["runs"])
         print_peak(path, data)
@@ -225,7 +281,9 @@ def main():
                   f"({used} measured points, {outside} outside {kept[0]:.4g}-"
                   f"{kept[-1]:.4g} Hz left out; converged points only)")
     if measured is not None:
-        amplitude_axes.plot(measured[0], measured[1] * 1e3, "ks--", mfc="none", label="measured")
+        measured_scale = 1e6 / force_amplitude(args.files[0]) if args.receptance else 1e3
+        amplitude_axes.plot(measured[0], measured[1] * measured_scale, "ks--", mfc="none",
+                            label="measured")
     handles, labels = amplitude_axes.get_legend_handles_labels()
     if any_unconverged:
         # One grey entry for all files: the hollow marker means the same whatever the colour.
@@ -235,7 +293,7 @@ def main():
         handles.append(Line2D([], [], ls="none", marker="x", ms=4, color="0.4"))
         labels.append(DISAGREE)
     amplitude_axes.legend(handles, labels, fontsize="small")
-    amplitude_axes.set_ylabel("displacement amplitude (mm)")
+    amplitude_axes.set_ylabel(unit)
     phase_axes.set_ylabel("phase (rad)")
     phase_axes.set_xlabel("frequency (Hz)")
     for axes in (amplitude_axes, phase_axes):
@@ -243,6 +301,7 @@ def main():
     amplitude_axes.set_title("first harmonic; error bars: 95 % confidence", fontsize="small")
     figure.tight_layout()
     figure.savefig(args.output, dpi=200)
+    plt.close(figure)
     print(f"wrote {args.output}")
 
 

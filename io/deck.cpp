@@ -705,13 +705,19 @@ BedSpec read_bed(const std::optional<Table>& t, bool gravity_on_particles) {
 
 OutputSpec read_output(const Table& t) {
   OutputSpec o;
-  t.allow_only({"file", "every", "energy"});
+  t.allow_only({"file", "every", "energy", "particles"});
   o.file = t.text("file").value_or("");
   if (t.has("file") && o.file.empty()) t.fail("file", "expected a file name, got \"\"");
   if (o.file.find('\0') != std::string::npos)
     t.fail("file", "expected a file name, got one with a NUL character (it would cut the path)");
   o.every = t.real("every", "a non-negative number (s)", non_negative).value_or(o.every);
   o.energy = t.boolean("energy").value_or(o.energy);
+  if (t.has("particles")) {
+    const Table p = t.need_sub("particles", "a table { every = <s> }", "for particle snapshots");
+    p.allow_only({"every"});
+    if (!p.has("every")) p.missing("every", "a positive number (s)", "for particle snapshots");
+    o.particles_every = *p.real("every", "a positive number (s)", positive);
+  }
   return o;
 }
 
@@ -972,7 +978,8 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
   // A random fill's response is chaotic and near resonance may lock into one of several
   // regimes for hundreds of periods: two realisations are the fewest that show it (README).
   if (x.settle.realisations == 0)
-    x.settle.realisations = random_fill && !deck.output.energy ? 2 : 1;
+    x.settle.realisations =
+        random_fill && !deck.output.energy && deck.output.particles_every == 0 ? 2 : 1;
   if (x.settle.realisations > 1 && !random_fill)
     throw InputError(deck.where("excitation.settle.realisations"), "excitation.settle.realisations",
                      "expected 1: a lattice fill is the same for every seed, so realisations "
@@ -981,6 +988,11 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
     throw InputError(deck.where("output.energy"), "output.energy",
                      "expected false with settle.realisations > 1 or start = \"independent\": "
                      "the energy ledger follows one continuous run");
+  if (deck.output.particles_every > 0 &&
+      (x.settle.realisations > 1 || x.start == FrequencyStart::independent))
+    throw InputError(deck.where("output.particles"), "output.particles",
+                     "not with settle.realisations > 1 or start = \"independent\": the particle "
+                     "snapshots follow one continuous run");
   if (const toml::node* sweep = root.get("sweep")) {
     if (!sweep->as_table()) top.wrong(*sweep, "sweep", table);
     deck.sweep = read_sweep(*sweep->as_table(), path);

@@ -150,9 +150,10 @@ struct BedSpec {
 constexpr double kBedHold_s = 0.02;  // a falling particle exceeds any threshold sooner
 
 struct OutputSpec {
-  std::string file;     // HDF5 path, relative to the working directory
-  double every = 0;     // s between time-series samples; 0 = automatic
-  bool energy = false;  // write /energy
+  std::string file;            // HDF5 path, relative to the working directory
+  double every = 0;            // s between time-series samples; 0 = automatic
+  bool energy = false;         // write /energy
+  double particles_every = 0;  // s between particle snapshots (/particles and OUT.xdmf); 0 = none
 };
 
 // A parameter sweep, the [sweep] table: each key names a deck value by its dotted name

@@ -100,12 +100,16 @@ void write_text_attribute(hid_t object, const std::string& name, const std::stri
   write_attribute(object, name, type.get(), type.get(), &chars, file, where);
 }
 
-void write_column(hid_t group, const std::string& group_path, const std::string& name,
-                  hid_t file_type, hid_t memory_type, const void* data, std::size_t size,
-                  const std::string& file, const char* units, const char* description) {
+// A dataset of any rank (`dims`, row-major `data`).
+void write_array(hid_t group, const std::string& group_path, const std::string& name,
+                 hid_t file_type, hid_t memory_type, const void* data,
+                 const std::vector<hsize_t>& dims, const std::string& file, const char* units,
+                 const char* description) {
   const std::string what = "write dataset " + group_path + "/" + name;
-  const hsize_t dims[1] = {static_cast<hsize_t>(size)};
-  Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose, file, what);
+  hsize_t size = 1;
+  for (hsize_t d : dims) size *= d;
+  Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose,
+               file, what);
   Handle dataset(H5Dcreate2(group, name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT,
                             H5P_DEFAULT),
                  H5Dclose, file, what);
@@ -115,6 +119,13 @@ void write_column(hid_t group, const std::string& group_path, const std::string&
   if (units) write_text_attribute(dataset.get(), "units", units, file, group_path + "/" + name);
   if (description)
     write_text_attribute(dataset.get(), "description", description, file, group_path + "/" + name);
+}
+
+void write_column(hid_t group, const std::string& group_path, const std::string& name,
+                  hid_t file_type, hid_t memory_type, const void* data, std::size_t size,
+                  const std::string& file, const char* units, const char* description) {
+  write_array(group, group_path, name, file_type, memory_type, data, {static_cast<hsize_t>(size)},
+              file, units, description);
 }
 
 class GroupWriter {
@@ -175,6 +186,35 @@ void write_meta(hid_t file_id, const Results& results, bool complete, const std:
   write_attribute(meta.get(), "complete", H5T_STD_I32LE, H5T_NATIVE_INT, &complete_flag, file);
 }
 
+// /particles: the snapshot times, then per damper its particles and container (OUT.xdmf indexes
+// them for ParaView, io/xdmf.hpp).
+void write_particles(hid_t parent, const ParticleSnapshots& s, const std::string& file) {
+  GroupWriter g(parent, "/particles", file);
+  g.column("time", s.time, "s", "snapshot times");
+  const auto steps = static_cast<hsize_t>(s.time.size());
+  for (std::size_t k = 0; k < s.dampers.size(); ++k) {
+    const DamperSnapshots& d = s.dampers[k];
+    const std::string path = "/particles/damper" + std::to_string(k);
+    GroupWriter dg(g.id(), path, file);
+    write_text_attribute(dg.id(), "shape", d.shape, file, path);
+    dg.column("container_size", d.size, "m",
+              "box: edge lengths; cylinder: diameter, diameter, height");
+    dg.column("radius", d.radius, "m", "particle radii");
+    const auto n = static_cast<hsize_t>(d.radius.size());
+    auto array = [&](const char* name, const std::vector<double>& v, std::vector<hsize_t> dims,
+                     const char* units, const char* what) {
+      write_array(dg.id(), path, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, v.data(), dims, file,
+                  units, what);
+    };
+    array("position", d.position, {steps, n, 3}, "m", "particle centres, world frame");
+    array("velocity", d.velocity, {steps, n, 3}, "m/s", "particle velocities, world frame");
+    array("spin", d.spin, {steps, n, 3}, "rad/s", "particle angular velocities, world frame");
+    array("container_position", d.container_position, {steps, 3}, "m", "container centre");
+    array("container_axes", d.container_axes, {steps, 3, 3}, "-",
+          "rows: the container's x, y and z axes in the world frame");
+  }
+}
+
 // The whole file built in memory (HDF5's core driver, no backing store) and returned as its
 // bytes: the disk is touched only by write_atomically(), so a full disk or a kill can never
 // leave HDF5 with a half-written file open (which crashed at exit) or a checkpoint half-written.
@@ -204,6 +244,7 @@ std::vector<char> file_image(const std::string& file, const Results& r, bool com
     GroupWriter(h5file.get(), "/energy", file).table(*r.energy, [](auto& t, auto&& f) {
       energy_columns(t, f);
     });
+  if (r.particles) write_particles(h5file.get(), *r.particles, file);
   if (!r.checkpoint.empty()) {
     GroupWriter g(h5file.get(), "/checkpoint", file);
     write_attribute(g.id(), "format", H5T_STD_I32LE, H5T_NATIVE_INT, &kCheckpointFormat, file,
@@ -285,6 +326,15 @@ int move_into_place(const std::string& from, const std::string& to, bool replace
 
 }  // namespace
 
+void replace_file(const std::string& path, const std::string& text) {
+  const std::string temporary = write_temporary(path, std::vector<char>(text.begin(), text.end()));
+  if (const int error = move_into_place(temporary, path, true); error != 0) {
+    unlink(temporary.c_str());
+    fail_io(path, "rename " + temporary + " to it", error);
+  }
+  sync_folder(path);
+}
+
 void write_results(const std::string& path, const Results& results, bool complete, bool replace) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   const std::string partial = path + ".partial";
@@ -328,15 +378,17 @@ bool has_link(hid_t location, const std::string& name, const std::string& file) 
 }
 
 // Reads a 1-D dataset; a missing one stays empty (files from older writers, optional columns).
+// With `rank` > 1, a dataset of that rank read flat (row-major).
 template <typename T>
 void read_column(hid_t group, const std::string& group_path, const std::string& name,
-                 hid_t memory_type, std::vector<T>& out, const std::string& file) {
+                 hid_t memory_type, std::vector<T>& out, const std::string& file, int rank = 1) {
   if (!has_link(group, name, file)) return;
   const std::string what = "read dataset " + group_path + "/" + name;
   Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose, file, what);
   Handle space(H5Dget_space(dataset.get()), H5Sclose, file, what);
-  if (check(H5Sget_simple_extent_ndims(space.get()), file, what) != 1) {
-    throw std::runtime_error(file + ": " + group_path + "/" + name + " is not a 1-D dataset");
+  if (check(H5Sget_simple_extent_ndims(space.get()), file, what) != rank) {
+    throw std::runtime_error(file + ": " + group_path + "/" + name + " is not a " +
+                             std::to_string(rank) + "-D dataset");
   }
   out.resize(
       static_cast<std::size_t>(check(H5Sget_simple_extent_npoints(space.get()), file, what)));
@@ -434,6 +486,27 @@ std::vector<std::string> member_names(hid_t group, bool attributes, const std::s
   return names;
 }
 
+// A string attribute (variable or fixed length) of `object`, whose path is `where`.
+std::string read_text_attribute(hid_t object, const std::string& name, const std::string& file,
+                                const std::string& where) {
+  const std::string what = "read attribute " + where + "/" + name;
+  Handle attribute(H5Aopen(object, name.c_str(), H5P_DEFAULT), H5Aclose, file, what);
+  Handle file_type(H5Aget_type(attribute.get()), H5Tclose, file, what);
+  if (H5Tget_class(file_type.get()) != H5T_STRING)
+    throw std::runtime_error(file + ": " + where + "/" + name + " is not a string");
+  Handle memory_type(H5Tget_native_type(file_type.get(), H5T_DIR_ASCEND), H5Tclose, file, what);
+  if (check(H5Tis_variable_str(file_type.get()), file, what) > 0) {
+    char* chars = nullptr;
+    check(H5Aread(attribute.get(), memory_type.get(), &chars), file, what);
+    std::string text = chars != nullptr ? chars : "";
+    H5free_memory(chars);
+    return text;
+  }
+  std::string chars(H5Tget_size(file_type.get()), '\0');
+  check(H5Aread(attribute.get(), memory_type.get(), chars.data()), file, what);
+  return chars.substr(0, std::strlen(chars.c_str()));
+}
+
 void read_meta(hid_t meta, Results& results, const std::string& file) {
   for (const std::string& name : member_names(meta, true, file, "list /meta attributes")) {
     if (name == "complete") continue;  // a property of the file, not of Results
@@ -442,17 +515,7 @@ void read_meta(hid_t meta, Results& results, const std::string& file) {
     Handle file_type(H5Aget_type(attribute.get()), H5Tclose, file, what);
     const H5T_class_t type_class = H5Tget_class(file_type.get());
     if (type_class == H5T_STRING) {
-      Handle memory_type(H5Tget_native_type(file_type.get(), H5T_DIR_ASCEND), H5Tclose, file, what);
-      if (check(H5Tis_variable_str(file_type.get()), file, what) > 0) {
-        char* chars = nullptr;
-        check(H5Aread(attribute.get(), memory_type.get(), &chars), file, what);
-        results.meta_text[name] = chars != nullptr ? chars : "";
-        H5free_memory(chars);
-      } else {
-        std::string chars(H5Tget_size(file_type.get()), '\0');
-        check(H5Aread(attribute.get(), memory_type.get(), chars.data()), file, what);
-        results.meta_text[name] = chars.substr(0, std::strlen(chars.c_str()));
-      }
+      results.meta_text[name] = read_text_attribute(meta, name, file, "/meta");
     } else if (type_class == H5T_FLOAT || type_class == H5T_INTEGER) {
       double number = 0;
       check(H5Aread(attribute.get(), H5T_NATIVE_DOUBLE, &number), file, what);
@@ -483,6 +546,28 @@ Results read_file(const std::string& file) {
              [&](hid_t, const GroupReader& g) { period_columns(r.periods, read_all(g)); });
   read_group(f, "/energy", file,
              [&](hid_t, const GroupReader& g) { energy_columns(r.energy.emplace(), read_all(g)); });
+  read_group(f, "/particles", file, [&](hid_t group, const GroupReader& g) {
+    ParticleSnapshots& s = r.particles.emplace();
+    g.column("time", s.time);
+    for (std::size_t k = 0;; ++k) {
+      const std::string name = "damper" + std::to_string(k);
+      if (!has_link(group, name, file)) break;
+      Handle damper(H5Gopen2(group, name.c_str(), H5P_DEFAULT), H5Gclose, file, "open " + name);
+      const std::string path = "/particles/" + name;
+      DamperSnapshots& d = s.dampers.emplace_back();
+      d.shape = read_text_attribute(damper.get(), "shape", file, path);
+      auto read = [&](const char* key, std::vector<double>& out, int rank) {
+        read_column(damper.get(), path, key, H5T_NATIVE_DOUBLE, out, file, rank);
+      };
+      read("container_size", d.size, 1);
+      read("radius", d.radius, 1);
+      read("position", d.position, 3);
+      read("velocity", d.velocity, 3);
+      read("spin", d.spin, 3);
+      read("container_position", d.container_position, 2);
+      read("container_axes", d.container_axes, 3);
+    }
+  });
   read_group(f, "/checkpoint", file, [&](hid_t group, const GroupReader&) {
     const int format = checkpoint_format(group, file);
     if (format != kCheckpointFormat)

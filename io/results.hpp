@@ -119,6 +119,22 @@ void period_columns(T& t, F&& f) {
 // The energy ledger of one continuous run, in the inertial frame of the particles (the
 // structure's kinetic energy includes the base's motion), each sample the state at the start
 // of a step with the works and losses up to it.
+// Particle snapshots (output.particles): every `every` seconds, each damper's particles and its
+// container, in the world frame. Arrays are flat, row-major: position[(t * N + i) * 3 + c].
+struct DamperSnapshots {
+  std::string shape;                       // "box" or "cylinder"
+  std::vector<double> size;                // m: box edge lengths; cylinder diameter, -, height
+  std::vector<double> radius;              // m, per particle (N)
+  std::vector<double> position, velocity;  // m, m/s (T x N x 3)
+  std::vector<double> spin;                // rad/s (T x N x 3)
+  std::vector<double> container_position;  // m, centre (T x 3)
+  std::vector<double> container_axes;      // rows: the container's x, y, z axes (T x 3 x 3)
+};
+struct ParticleSnapshots {
+  std::vector<double> time;  // s (T)
+  std::vector<DamperSnapshots> dampers;
+};
+
 struct EnergySeries {
   std::vector<double> time, work_in, dissipated_structure, dissipated_normal, dissipated_tangential,
       dissipated_rolling, kinetic, potential, imbalance;
@@ -155,6 +171,7 @@ struct Results {
   PrescribedTable prescribed;
   PeriodTable periods;  // the per-period harmonics behind /frf or /prescribed
   std::optional<EnergySeries> energy;
+  std::optional<ParticleSnapshots> particles;
   // Restart state (named flat arrays), written while a run is in progress so that --resume
   // continues after the last finished frequency. Empty in a finished file.
   StateArrays checkpoint;  // format kCheckpointFormat, each array in its own type
@@ -169,6 +186,9 @@ struct Results {
 // std::runtime_error naming the path on any failure (HDF5 or the disk).
 void write_results(const std::string& path, const Results& results, bool complete,
                    bool replace = true);
+
+// Replaces `path` by `text` whole: a flushed temporary file renamed into place.
+void replace_file(const std::string& path, const std::string& text);
 
 // Writes `results` to exactly `path` as an unfinished file (/meta/complete = 0), replacing it
 // whole (what a failed run had computed). Throws std::runtime_error naming the path.

@@ -75,6 +75,8 @@ class CoupledSystem {
   // the origin).
   Energy state_energy() const;
   long long particle_steps() const { return particle_steps_; }
+  // Damper k's container now (its pose and motion in the world frame).
+  ContainerKinematics container(std::size_t k) const { return container_now(k); }
   int particle_count() const;
   const std::vector<std::unique_ptr<DemEngine>>& engines() const { return engines_; }
   void set_initial_displacement(double x0);  // free decay: displace the response DOF statically

@@ -18,6 +18,17 @@ FrequencyRun::FrequencyRun(const Deck& deck, const Scene& scene, Progress progre
   const double f_top = scene.highest_frequency > 0 ? scene.highest_frequency : first_mode();
   sample_every_ = deck.output.every > 0 ? deck.output.every : 1.0 / (32 * f_top);
   if (deck.output.energy) energy_.emplace();
+  if (deck.output.particles_every > 0) {
+    ParticleSnapshots& s = particles_.emplace();
+    for (std::size_t k = 0; k < scene.dampers.size(); ++k) {
+      const EngineConfig& c = scene.dampers[k].engine;
+      DamperSnapshots& d = s.dampers.emplace_back();
+      const Vec3 h = c.geometry.half_size;
+      d.shape = c.shape == WallShape::box ? "box" : "cylinder";
+      d.size = {2 * h.x, 2 * h.y, 2 * h.z};
+      d.radius = c.radius;
+    }
+  }
   // Before anything is measured the bed moves with its container: a rigid mass carrying its
   // weight's component along the structure's direction.
   const double along = deck.gravity && deck.structure.kind != StructureKind::none
@@ -87,8 +98,27 @@ void FrequencyRun::jump(Change&& change) {
   work_in_ += after.kinetic + after.potential - before.kinetic - before.potential;
 }
 
+void FrequencyRun::snapshot() {
+  ParticleSnapshots& s = *particles_;
+  s.time.push_back(system_.time());
+  auto push = [](std::vector<double>& to, Vec3 v) { to.insert(to.end(), {v.x, v.y, v.z}); };
+  for (std::size_t k = 0; k < s.dampers.size(); ++k) {
+    DamperSnapshots& d = s.dampers[k];
+    for (const ParticleState& p : system_.engines()[k]->particles()) {
+      push(d.position, p.position);
+      push(d.velocity, p.velocity);
+      push(d.spin, p.spin);
+    }
+    const ContainerKinematics c = system_.container(k);
+    push(d.container_position, c.position);
+    for (const Vec3& axis : {c.axis_x, c.axis_y, c.axis_z}) push(d.container_axes, axis);
+  }
+  next_snapshot_ += deck_.output.particles_every;
+}
+
 void FrequencyRun::step() {
   if (g_stop_runs) throw Interrupted();
+  if (particles_ && system_.time() + 1e-12 >= next_snapshot_) snapshot();
   // A sample is the state at the start of the step, with the tallies up to it.
   const bool sample = system_.time() + 1e-12 >= next_sample_;
   const Energy state = energy_ && sample ? system_.state_energy() : Energy{};
@@ -271,6 +301,7 @@ StateArrays FrequencyRun::save() const {
                           d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0,
                           dissipated_r_,
                           dissipated_s_};
+  if (particles_) out["run.next_snapshot"] = std::vector<double>{next_snapshot_};
   out["run.effective_mass"] = effective_mass_;
   out["run.effective_damping"] = effective_damping_;
   out["run.mean_force"] = mean_force_;
@@ -285,6 +316,7 @@ void FrequencyRun::restore(const StateArrays& state) {
   dissipated_t_ = t[1];
   work_in_ = t[2];
   next_sample_ = t[3];
+  if (particles_) next_snapshot_ = state_value<double>(state, "run.next_snapshot");
   restored_angle_ = t[4];
   dissipated_r_ = t[5];
   dissipated_s_ = t[6];

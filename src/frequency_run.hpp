@@ -58,9 +58,12 @@ class FrequencyRun {
   // Time series (and /energy when asked for) recorded so far.
   const TimeSeries& timeseries() const { return timeseries_; }
   const std::optional<EnergySeries>& energy() const { return energy_; }
-  void set_records(const TimeSeries& t, const std::optional<EnergySeries>& e) {
+  const std::optional<ParticleSnapshots>& particles() const { return particles_; }
+  void set_records(const TimeSeries& t, const std::optional<EnergySeries>& e,
+                   const std::optional<ParticleSnapshots>& p) {
     timeseries_ = t;
     energy_ = e;
+    particles_ = p;
   }
   CoupledSystem& system() { return system_; }
   const CoupledSystem& system() const { return system_; }
@@ -88,7 +91,9 @@ class FrequencyRun {
   Progress progress_;
   TimeSeries timeseries_;
   std::optional<EnergySeries> energy_;
-  double dt_ = 0, sample_every_ = 0, next_sample_ = 0, frequency_ = 0;
+  std::optional<ParticleSnapshots> particles_;
+  double dt_ = 0, sample_every_ = 0, next_sample_ = 0, frequency_ = 0, next_snapshot_ = 0;
+  void snapshot();  // the particles and containers now, into particles_
   // The ledger's cumulative terms, J (see energy_columns).
   double dissipated_n_ = 0, dissipated_t_ = 0, dissipated_r_ = 0, dissipated_s_ = 0, work_in_ = 0;
   // The drive's phase at a restored state (the restored system has no drive yet).

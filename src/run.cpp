@@ -16,6 +16,7 @@
 #include <sstream>
 #include <thread>
 
+#include "io/xdmf.hpp"
 #include "pdsim_version.hpp"
 #include "src/frequency_run.hpp"
 #include "src/sweep.hpp"
@@ -335,6 +336,7 @@ class Driver {
     const StateArrays& c = partial.checkpoint;
     results_.timeseries = partial.timeseries;
     results_.energy = partial.energy;
+    results_.particles = partial.particles;
     bed_from_file_ = c.count("bed.from_file") > 0;
     for (std::size_t r = 0; r < scenes_.size(); ++r) {
       beds_[r] = get_state(c, "bed.r" + std::to_string(r) + ".");
@@ -392,6 +394,7 @@ class Driver {
       }
       results_.timeseries = run.timeseries();
       results_.energy = run.energy();
+      results_.particles = run.particles();
       Seen from_start;
       account(run, from_start);
       progress.finish();
@@ -480,7 +483,8 @@ class Driver {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!failed_) {
         Results& f = failed_.emplace(results_);
-        if (!independent() && r == 0) f.timeseries = run.timeseries(), f.energy = run.energy();
+        if (!independent() && r == 0)
+          f.timeseries = run.timeseries(), f.energy = run.energy(), f.particles = run.particles();
         add_rows(f);
         provenance(f);
         f.meta_text["failure"] = e.what();
@@ -591,7 +595,7 @@ class Driver {
       }
       if (!independent() && !carried.empty()) {
         run.restore(carried);
-        if (r == 0) run.set_records(results_.timeseries, results_.energy);
+        if (r == 0) run.set_records(results_.timeseries, results_.energy, results_.particles);
       } else {
         run.restore(beds_[r]);
       }
@@ -625,6 +629,7 @@ class Driver {
       } else {
         results_.timeseries = run.timeseries();
         results_.energy = run.energy();
+        results_.particles = run.particles();
       }
     }
     progress_->say(describe(point, r));
@@ -982,7 +987,12 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
     return {partial, "stopped after " + std::to_string(driver.finished()) +
                          " frequencies as asked; continue with --resume"};
   write_results(path, results, true, options.force);
-  return {path, summary_line(results, path, deck)};
+  std::string summary = summary_line(results, path, deck);
+  if (results.particles) {
+    write_xdmf(path, *results.particles);
+    summary += "; particles: " + xdmf_path(path) + " (ParaView)";
+  }
+  return {path, summary};
 }
 
 std::string check_report(const Deck& deck, const Scene& scene) {

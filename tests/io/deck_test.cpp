@@ -421,6 +421,19 @@ TEST_CASE("realisations: two by default for a random fill, need one, the energy 
   CHECK(energy.find("one continuous run") != std::string::npos);
   CHECK(error_of(random + "start = \"independent\"\n[output]\nenergy = true\n")
             .find("'output.energy'") != std::string::npos);
+  // Particle snapshots follow one continuous run too.
+  const std::string snapshots = "[output]\nparticles = { every = 0.01 }\n";
+  const Deck with = parse_deck(random + snapshots, "deck.toml");
+  CHECK(with.output.particles_every == 0.01);
+  CHECK(with.excitation.settle.realisations == 1);
+  const std::string refused = error_of(random + again + snapshots);
+  CHECK(refused.find("'output.particles'") != std::string::npos);
+  CHECK(refused.find("one continuous run") != std::string::npos);
+  CHECK(
+      error_of(random + "[output]\nparticles = { every = 0 }\n").find("'output.particles.every'") !=
+      std::string::npos);
+  CHECK(error_of(random + "[output]\nparticles = { each = 1 }\n").find("each") !=
+        std::string::npos);
 }
 
 TEST_CASE("frequencies: start > stop, step <= 0, non-positive values, too many") {

@@ -72,6 +72,20 @@ Results full_results() {
   pdsim::prescribed_columns(r.prescribed, fill);
   pdsim::period_columns(r.periods, fill);
   pdsim::energy_columns(r.energy.emplace(), fill);
+  // Two snapshots of a 2-particle box and a 1-particle cylinder.
+  pdsim::ParticleSnapshots& s = r.particles.emplace();
+  s.time = {0.5, 0.75};
+  for (const char* shape : {"box", "cylinder"}) {
+    pdsim::DamperSnapshots& d = s.dampers.emplace_back();
+    const std::size_t n = s.dampers.size() == 1 ? 2 : 1;
+    d.shape = shape;
+    d.size = {0.02, 0.03, 0.04};
+    d.radius = std::vector<double>(n, 0.002);
+    for (auto* v : {&d.position, &d.velocity, &d.spin}) *v = awkward(double(v->size() + 7 * n));
+    for (auto* v : {&d.position, &d.velocity, &d.spin}) v->resize(2 * n * 3, 0.25);
+    d.container_position = {0, 0, 0, 1e-3, 0, 0};
+    d.container_axes = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, -1, 0, 1, 0, 0, 0, 0, 1};
+  }
   r.checkpoint = {{"structure_state", std::vector<double>{1e-3, -2e-4, 0.5}},
                   {"particle_positions", awkward(11)},
                   {"rng_state", std::vector<double>{}},
@@ -118,6 +132,22 @@ void check_equal(const Results& a, const Results& b) {
   REQUIRE(a.energy.has_value() == b.energy.has_value());
   if (a.energy)
     check_columns(*a.energy, *b.energy, [](auto& t, auto&& f) { pdsim::energy_columns(t, f); });
+  REQUIRE(a.particles.has_value() == b.particles.has_value());
+  if (a.particles) {
+    CHECK(a.particles->time == b.particles->time);
+    REQUIRE(a.particles->dampers.size() == b.particles->dampers.size());
+    for (std::size_t k = 0; k < a.particles->dampers.size(); ++k) {
+      const pdsim::DamperSnapshots &x = a.particles->dampers[k], &y = b.particles->dampers[k];
+      CHECK(x.shape == y.shape);
+      CHECK(x.size == y.size);
+      CHECK(x.radius == y.radius);
+      CHECK(x.position == y.position);
+      CHECK(x.velocity == y.velocity);
+      CHECK(x.spin == y.spin);
+      CHECK(x.container_position == y.container_position);
+      CHECK(x.container_axes == y.container_axes);
+    }
+  }
   CHECK(a.checkpoint == b.checkpoint);
 }
 

@@ -1,0 +1,82 @@
+#!/usr/bin/python3
+"""A run's particle snapshots opened with ParaView's own XDMF reader (python3-paraview, headless):
+the particles are points with the run's count and radius, velocity and spin attributes, one
+particle's position equals the HDF5 file's at that time, and the container's wireframe is there.
+
+usage: paraview_test.py PDSIM SOURCE_DIR
+"""
+import os
+import subprocess
+import sys
+import tempfile
+
+import h5py
+import numpy as np
+from paraview import simple, servermanager
+
+DECK = """
+[[damper]]
+container = { shape = "box", size = [0.02, 0.03, 0.02] }
+particles = { count = 20, diameter = 0.004, density = 7800.0, seed = 3 }
+[contact]
+model = "linear"
+tangential = "history"
+stiffness = 2000.0
+young = 2.0e8
+restitution = 0.5
+friction = 0.3
+[gravity]
+vector = [0.0, 0.0, -9.81]
+[excitation]
+kind = "prescribed"
+motion = { axis = [1.0, 0.0, 0.0], amplitude = 0.002, frequency = 20.0 }
+duration = 0.1
+[output]
+file = "run.h5"
+particles = { every = 0.01 }
+"""
+
+
+def blocks(data):
+    it = data.NewIterator()
+    it.InitTraversal()
+    while not it.IsDoneWithTraversal():
+        yield it.GetCurrentDataObject()
+        it.GoToNextItem()
+
+
+def main():
+    pdsim = sys.argv[1]
+    with tempfile.TemporaryDirectory() as work:
+        os.chdir(work)
+        open("run.toml", "w").write(DECK)
+        subprocess.run([pdsim, "run", "run.toml", "--quiet"], check=True, stdout=subprocess.DEVNULL)
+        with h5py.File("run.h5", "r") as h5:
+            times = h5["particles/time"][()]
+            position = h5["particles/damper0/position"][()]
+            centre = h5["particles/damper0/container_position"][()]
+        assert len(times) == 10, times
+        reader = simple.XDMFReader(FileNames=[os.path.join(work, "run.xdmf")])
+        assert np.allclose(reader.TimestepValues, times), (reader.TimestepValues, times)
+        k = 6
+        simple.UpdatePipeline(time=times[k], proxy=reader)
+        found = list(blocks(servermanager.Fetch(reader)))
+        assert len(found) == 2, [b.GetClassName() for b in found]
+        particles, container = found
+        assert particles.GetNumberOfPoints() == 20, particles.GetNumberOfPoints()
+        names = {particles.GetPointData().GetArrayName(i)
+                 for i in range(particles.GetPointData().GetNumberOfArrays())}
+        assert names == {"radius", "velocity", "spin"}, names
+        assert np.allclose(particles.GetPointData().GetArray("radius").GetValue(3), 0.002)
+        for i in (0, 7, 19):
+            assert np.array_equal(particles.GetPoint(i), position[k, i]), (i, particles.GetPoint(i))
+        # The box's 8 corners and 12 edges, centred on the container at that time.
+        assert container.GetNumberOfPoints() == 8 and container.GetNumberOfCells() == 12
+        corners = np.array([container.GetPoint(i) for i in range(8)])
+        assert np.allclose(corners.mean(axis=0), centre[k], atol=1e-12), (corners, centre[k])
+        assert np.allclose(corners.max(axis=0) - corners.min(axis=0), [0.02, 0.03, 0.02])
+    print("ParaView reads the snapshots: 20 points, attributes, positions and the container")
+
+
+if __name__ == "__main__":
+    main()

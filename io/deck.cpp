@@ -332,6 +332,17 @@ void read_section(const Table& section, BeamSpec& beam) {
     beam.shear_factor = 0.9;  // solid circle; Cowper (1966) gives 6(1+nu)/(7+6nu) = 0.89 at 0.3
     beam.section_height = d;
   }
+  // Positive but so small that the area or the second moment underflows (5e-324 m): the beam's
+  // matrices would have no modes.
+  if (!std::isnormal(beam.area) || !std::isnormal(beam.inertia)) {
+    const char* key = !shape        ? (std::isnormal(beam.area) ? "inertia" : "area")
+                      : *shape == 0 ? "height"
+                                    : "diameter";
+    std::ostringstream got;
+    got << "expected a section whose area and second moment are normal numbers, got " << beam.area
+        << " m^2 and " << beam.inertia << " m^4";
+    section.fail(key, got.str());
+  }
 }
 
 StructureSpec read_structure(const Table& t) {

@@ -519,6 +519,11 @@ TEST_CASE("keys that exclude each other") {
       "section = { shape = \"circle\", diameter = 0.01 }\n";
   check_error(beam + "damping_ratio = 0.01\nrayleigh = [1, 1e-5]\n" + kSine,
               "9:12: 'structure.rayleigh': ", "give either rayleigh or damping_ratio, not both");
+  // A positive diameter whose area underflows (found by the deck fuzz test: no modes).
+  std::string tiny = beam;
+  tiny.replace(tiny.find("0.01 }"), 4, "5e-324");
+  check_error(tiny + kSine, "7:42: 'structure.section.diameter': ",
+              "expected a section whose area and second moment are normal numbers, got 0 m^2");
   check_error(kSdof + kSine + kContact +
                   "[[damper]]\ncontainer = { shape = \"box\", size = [1, 1, 1] }\n"
                   "particles = { count = 1, diameter = 0.005, diameters = [0.005], density = 1 }\n",

@@ -6,6 +6,7 @@ Usage:
   validation/plot.py timeseries OUT.h5 [--frequency HZ] [-o F]
   validation/plot.py energy OUT.h5 [-o F]
   validation/plot.py prescribed OUT.h5 [MORE.h5 ...] [-o F]
+  validation/plot.py bed OUT.h5 [--time S] [--damper K] [-o F]
 
 The format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector); the default is
 <kind>.png. Every axis is labelled with its unit; each plot says what its error bars are.
@@ -18,6 +19,9 @@ The format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector); t
   input.
 - prescribed: /prescribed dissipated power (W) and first-harmonic force amplitude (N) against the
   drive frequency, with 95 % intervals, one colour per file.
+- bed: one particle snapshot (output.particles) in 3-D, the container's frame, each sphere to
+  scale and coloured by its speed (the snapshot nearest --time, default the last); ParaView
+  plays them all (OUT.xdmf).
 """
 import argparse
 import os
@@ -134,6 +138,54 @@ def prescribed(args):
     save(figure, args.output)
 
 
+def bed(args):
+    try:
+        with h5py.File(args.file, "r") as h5:
+            if "particles" not in h5:
+                sys.exit(f"plot.py: {args.file} has no /particles (run with output.particles)")
+            times = h5["particles/time"][()]
+            t = len(times) - 1 if args.time is None else int(np.argmin(np.abs(times - args.time)))
+            d = h5[f"particles/damper{args.damper}"]
+            position, velocity = d["position"][t], d["velocity"][t]
+            radius, size = d["radius"][()], d["container_size"][()]
+            centre, axes = d["container_position"][t], d["container_axes"][t]
+            shape = plot_frf.text(d.attrs["shape"])
+            title = plot_frf.text(h5["meta"].attrs.get("title")) or os.path.basename(args.file)
+    except (OSError, KeyError) as error:
+        sys.exit(f"plot.py: cannot read the snapshots of {args.file}: {error}")
+    local = (position - centre) @ axes.T * 1e3  # mm, in the container's frame
+    speed = np.linalg.norm(velocity, axis=1)
+    figure = plt.figure(figsize=(7, 6))
+    view = figure.add_subplot(projection="3d")
+    half = 0.5 * size * 1e3
+    # Marker area in points^2 for a sphere of the given radius at this axes' scale (roughly).
+    scale = (figure.get_size_inches()[0] * 72 * 0.5 / (2 * half.max())) ** 2
+    dots = view.scatter(local[:, 0], local[:, 1], local[:, 2], s=np.pi * scale * (radius * 1e3) ** 2,
+                        c=speed, cmap="viridis", depthshade=True, edgecolors="k", linewidths=0.2)
+    figure.colorbar(dots, ax=view, shrink=0.6, label="speed (m/s)")
+    if shape == "box":
+        for a in (-1, 1):
+            for b in (-1, 1):
+                for axis in range(3):
+                    ends = np.zeros((2, 3))
+                    ends[:, axis] = [-half[axis], half[axis]]
+                    others = [i for i in range(3) if i != axis]
+                    ends[:, others[0]] = a * half[others[0]]
+                    ends[:, others[1]] = b * half[others[1]]
+                    view.plot(*ends.T, color="0.5", lw=0.8)
+    else:
+        angle = np.linspace(0, 2 * np.pi, 65)
+        for z in (-half[2], half[2]):
+            view.plot(half[0] * np.cos(angle), half[1] * np.sin(angle), z, color="0.5", lw=0.8)
+    view.set_box_aspect(half)
+    view.set_xlabel("x (mm)")
+    view.set_ylabel("y (mm)")
+    view.set_zlabel("z (mm)")
+    view.set_title(f"{title}: t = {times[t]:.4g} s, {len(radius)} particles (container frame)",
+                   fontsize="small")
+    save(figure, args.output)
+
+
 def main():
     if len(sys.argv) > 1 and sys.argv[1] == "frf":
         plot_frf.main(sys.argv[2:])
@@ -148,14 +200,19 @@ def main():
     ledger.add_argument("file")
     power = kinds.add_parser("prescribed", help="dissipated power and force against frequency")
     power.add_argument("files", nargs="+")
+    snapshot = kinds.add_parser("bed", help="one particle snapshot in 3-D")
+    snapshot.add_argument("file")
+    snapshot.add_argument("--time", type=float, help="s; the nearest snapshot (default the last)")
+    snapshot.add_argument("--damper", type=int, default=0, help="which damper (default 0)")
     kinds.add_parser("frf", help="amplitude and phase (validation/plot_frf.py)")
-    for sub in (one, ledger, power):
+    for sub in (one, ledger, power, snapshot):
         sub.add_argument("-o", "--output", help="image to write: .png, .pdf or .svg")
     args = parser.parse_args()
     args.output = args.output or f"{args.kind}.png"
     if os.path.splitext(args.output)[1].lower() not in FORMATS:
         sys.exit(f"plot.py: {args.output}: the output must end in {', '.join(FORMATS)}")
-    {"timeseries": timeseries, "energy": energy, "prescribed": prescribed}[args.kind](args)
+    {"timeseries": timeseries, "energy": energy, "prescribed": prescribed, "bed": bed}[
+        args.kind](args)
 
 
 if __name__ == "__main__":

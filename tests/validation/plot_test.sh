@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# validation/plot.py on a small stepped sine, a prescribed motion and a free decay with its
-# energy ledger: every kind of plot, as PNG and as PDF, must be written and non-empty.
+# validation/plot.py on a small stepped sine, a free decay with its energy ledger and a
+# prescribed motion with particle snapshots: every kind of plot, as PNG and as PDF, must be
+# written and non-empty.
 # usage: plot_test.sh PDSIM SOURCE_DIR
 set -euo pipefail
 pdsim=$1
@@ -36,6 +37,7 @@ duration = 0.2
 settle = { realisations = 1 }
 [output]
 file = "box.h5"
+particles = { every = 0.05 }
 DECK
 "$pdsim" run box.toml -o box.h5 --quiet > /dev/null
 
@@ -45,7 +47,8 @@ for format in png pdf; do
   "${plot[@]}" energy decay.h5 -o "energy.$format"
   "${plot[@]}" timeseries decay.h5 -o "decay.$format"
   "${plot[@]}" prescribed box.h5 -o "prescribed.$format"
-  for kind in frf timeseries energy prescribed decay; do
+  "${plot[@]}" bed box.h5 --time 0.1 -o "bed.$format"
+  for kind in frf timeseries energy prescribed decay bed; do
     [ -s "$kind.$format" ] || { echo "$kind.$format is missing or empty" >&2; exit 1; }
   done
 done

@@ -16,7 +16,7 @@ namespace pdsim {
 
 struct TimeSeries {  // structure DOF along the excitation direction, total force on the
                      // container(s)
-  std::vector<double> time, displacement, velocity, damper_force, frequency;
+  std::vector<double> time, displacement, velocity, damper_force, damper_force_mean, frequency;
 };
 template <class T, class F>
 void timeseries_columns(T& t, F&& f) {
@@ -28,6 +28,9 @@ void timeseries_columns(T& t, F&& f) {
   f("damper_force", t.damper_force, "N",
     "force of the particles on the container(s) along the direction: the mean over the coupling "
     "interval that starts at the sample (tight coupling: its value at the sample)");
+  f("damper_force_mean", t.damper_force_mean, "N",
+    "damper_force averaged over the time since the previous sample (its impulse over that "
+    "interval), so that impacts between samples are not lost; NaN at a run's first sample");
   f("frequency", t.frequency, "Hz", "excitation frequency being run when the sample was taken");
 }
 

@@ -131,6 +131,9 @@ void FrequencyRun::step() {
     ts.displacement.push_back(r.displacement);
     ts.velocity.push_back(r.velocity);
     ts.damper_force.push_back(r.damper_force);
+    ts.damper_force_mean.push_back(impulse_time_ > 0 ? impulse_ / impulse_time_
+                                                     : std::numeric_limits<double>::quiet_NaN());
+    impulse_ = impulse_time_ = 0;
     ts.frequency.push_back(frequency_);
     if (energy_) {
       EnergySeries& e = *energy_;
@@ -149,6 +152,9 @@ void FrequencyRun::step() {
                             change(e.dissipated_rolling) - change(e.kinetic) - change(e.potential));
     }
   }
+  const double h = system_.time() - r.time;  // the step (or coupling interval) just taken
+  impulse_ += r.damper_force * h;
+  impulse_time_ += h;
   dissipated_s_ += r.dissipated_structure;
   dissipated_n_ += r.dissipated_normal;
   dissipated_t_ += r.dissipated_tangential;
@@ -300,7 +306,9 @@ StateArrays FrequencyRun::save() const {
                           next_sample_,
                           d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0,
                           dissipated_r_,
-                          dissipated_s_};
+                          dissipated_s_,
+                          impulse_,
+                          impulse_time_};
   if (particles_) out["run.next_snapshot"] = std::vector<double>{next_snapshot_};
   out["run.effective_mass"] = effective_mass_;
   out["run.effective_damping"] = effective_damping_;
@@ -311,7 +319,7 @@ StateArrays FrequencyRun::save() const {
 void FrequencyRun::restore(const StateArrays& state) {
   system_.restore(state);
   const auto& t = state_values<double>(state, "run.tallies");
-  if (t.size() != 7) throw SimulationError("the checkpoint's run.tallies should hold 7 values");
+  if (t.size() != 9) throw SimulationError("the checkpoint's run.tallies should hold 9 values");
   dissipated_n_ = t[0];
   dissipated_t_ = t[1];
   work_in_ = t[2];
@@ -320,6 +328,8 @@ void FrequencyRun::restore(const StateArrays& state) {
   restored_angle_ = t[4];
   dissipated_r_ = t[5];
   dissipated_s_ = t[6];
+  impulse_ = t[7];
+  impulse_time_ = t[8];
   restored_ = true;
   effective_mass_ = state_values<double>(state, "run.effective_mass");
   effective_damping_ = state_values<double>(state, "run.effective_damping");

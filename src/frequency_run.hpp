@@ -96,6 +96,8 @@ class FrequencyRun {
   void snapshot();  // the particles and containers now, into particles_
   // The ledger's cumulative terms, J (see energy_columns).
   double dissipated_n_ = 0, dissipated_t_ = 0, dissipated_r_ = 0, dissipated_s_ = 0, work_in_ = 0;
+  // The damper force's impulse (N s) over the time (s) since the last time-series sample.
+  double impulse_ = 0, impulse_time_ = 0;
   // The drive's phase at a restored state (the restored system has no drive yet).
   double restored_angle_ = 0;
   bool restored_ = false;

@@ -12,8 +12,9 @@ The format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector); t
 <kind>.png. Every axis is labelled with its unit; each plot says what its error bars are.
 - frf: /frf amplitude (or receptance) and phase with 95 % intervals (validation/plot_frf.py,
   which documents the options).
-- timeseries: /timeseries displacement (mm) and damper force (N) against time; --frequency keeps
-  the samples taken at that drive frequency (a stepped sine records every frequency in turn).
+- timeseries: /timeseries displacement (mm) and damper force (N, at the samples and averaged
+  between them) against time; --frequency keeps the samples taken at that drive frequency (a
+  stepped sine records every frequency in turn).
 - energy: the /energy ledger (output.energy = true): the input's work, the dissipation by
   mechanism and the stored energy's change (J, cumulative), and the imbalance as a share of the
   input.
@@ -75,7 +76,12 @@ def timeseries(args):
         keep = ts["frequency"] == nearest
     figure, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 5.5))
     top.plot(ts["time"][keep], ts["displacement"][keep] * 1e3, lw=0.8)
-    bottom.plot(ts["time"][keep], ts["damper_force"][keep], lw=0.8, color="C1")
+    bottom.plot(ts["time"][keep], ts["damper_force"][keep], lw=0.5, color="0.6",
+                label="at the sample")
+    if "damper_force_mean" in ts:  # files before the column had only the samples
+        bottom.plot(ts["time"][keep], ts["damper_force_mean"][keep], lw=0.9, color="C1",
+                    label="mean since the previous sample (impulse / interval)")
+        bottom.legend(fontsize="small")
     top.set_ylabel("displacement (mm)")
     bottom.set_ylabel("damper force (N)")
     bottom.set_xlabel("time (s)")

@@ -255,7 +255,9 @@ TEST_CASE("results: a checkpoint of another format is refused, naming the file a
   H5Fclose(file);
   const std::string expected = partial.string() +
                                ": its checkpoint has format 1 (an older pdsim); this pdsim reads "
-                               "format 2: run anew without --resume";
+                               "format " +
+                               std::to_string(pdsim::kCheckpointFormat) +
+                               ": run anew without --resume";
   CHECK_THROWS_WITH_AS(pdsim::read_results(partial.string()), doctest::Contains(expected.c_str()),
                        pdsim::InputError);
   fs::remove_all(dir);

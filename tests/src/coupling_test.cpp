@@ -149,6 +149,42 @@ double elastic_energy_drift(CouplingScheme scheme, double duration, double dt_sa
 
 }  // namespace
 
+TEST_CASE("the time series' mean damper force is the impulse since the previous sample") {
+  // Samples at every step: each sample's mean is then the force of the step before it. With a
+  // sample every 10 steps it is the average of those 10 forces, so the impacts between samples
+  // count (an instantaneous sample misses a contact 10 steps long).
+  Deck d = impact_damper_deck(CouplingScheme::interleaved);
+  d.excitation.kind = ExcitationKind::free_decay;
+  d.excitation.initial_displacement = 0.008;
+  d.excitation.duration = 0.05;
+  const Scene scene = build_scene(d);
+  d.output.every = 0.5 * scene.dt;
+  const Results every_step = simulate(d, scene);
+  const TimeSeries& a = every_step.timeseries;
+  REQUIRE(a.time.size() > 1000);
+  CHECK(std::isnan(a.damper_force_mean[0]));
+  double impacts = 0;
+  for (std::size_t k = 1; k < a.time.size(); ++k) {
+    CAPTURE(k);
+    REQUIRE(a.damper_force_mean[k] == doctest::Approx(a.damper_force[k - 1]).epsilon(1e-9));
+    impacts += a.damper_force[k - 1] != 0;
+  }
+  REQUIRE(impacts > 10);  // the ball hit the walls within the run
+  d.output.every = 10 * scene.dt;
+  const TimeSeries b = simulate(d, scene).timeseries;
+  // The steps between two of its samples (about 10: the sample times are accumulated sums).
+  std::size_t j = 0;
+  for (std::size_t k = 1; k < b.time.size(); ++k) {
+    CAPTURE(k);
+    double sum = 0;
+    int steps = 0;
+    for (; j < a.time.size() && a.time[j] < b.time[k] - 0.5 * scene.dt; ++j)
+      if (a.time[j] >= b.time[k - 1] - 0.5 * scene.dt) sum += a.damper_force[j], ++steps;
+    REQUIRE(steps >= 9);
+    CHECK(b.damper_force_mean[k] == doctest::Approx(sum / steps).epsilon(1e-9).scale(1.0));
+  }
+}
+
 TEST_CASE("coupling order: every scheme converges on the exact impact damper as dt falls") {
   // The free decay above with a contact 100 times stiffer (contact time 33 us, so that the soft
   // contact's own departure from Newton's impacts, about 0.1 % of x0 here, stays below the time

@@ -100,7 +100,7 @@ int main(int argc, char** argv) {
     if (*modes) {
       if (deck.structure.kind == pdsim::StructureKind::none)
         throw pdsim::InputError(deck.path + ": the deck has no [structure]");
-      const auto f = pdsim::natural_frequencies(pdsim::build_structure(deck));
+      const auto f = pdsim::structure_frequencies(deck);
       std::cout << pdsim::format_modes(f, mode_count);
       return 0;
     }

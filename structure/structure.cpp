@@ -184,9 +184,7 @@ LinearStructure build_beam(const Deck& deck) {
   VectorXd omega;  // rad/s
   if (reduce || modal_damping) {
     Eigen::GeneralizedSelfAdjointEigenSolver<MatrixXd> eigen(s.stiffness, s.mass);
-    if (eigen.info() != Eigen::Success) {
-      throw SimulationError("beam eigenproblem failed to converge");
-    }
+    if (eigen.info() != Eigen::Success) throw_no_modes(deck);
     modes = eigen.eigenvectors();
     omega = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();
   }
@@ -221,6 +219,20 @@ LinearStructure build_beam(const Deck& deck) {
 }
 
 }  // namespace
+
+[[noreturn]] void throw_no_modes(const Deck& deck) {
+  throw InputError(deck.where("structure"), "structure",
+                   "expected a structure whose mass and stiffness matrices have modes (their "
+                   "eigenproblem failed): look for an absurd density, young, section or mass");
+}
+
+std::vector<double> structure_frequencies(const Deck& deck) {
+  try {
+    return natural_frequencies(build_structure(deck));
+  } catch (const SimulationError&) {
+    throw_no_modes(deck);
+  }
+}
 
 LinearStructure build_structure(const Deck& deck) {
   switch (deck.structure.kind) {

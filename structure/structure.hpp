@@ -58,6 +58,10 @@ struct LinearStructure {
 // Builds the model from the deck (beam: assembly, supports, optional modal reduction).
 // Throws InputError for inconsistent input (e.g. an attachment beyond the beam).
 LinearStructure build_structure(const Deck& deck);
+// Refuses, at the deck's [structure], a structure whose matrices have no modes (absurd values).
+[[noreturn]] void throw_no_modes(const Deck& deck);
+// Natural frequencies (Hz) of the deck's structure, ascending; an InputError when it has none.
+std::vector<double> structure_frequencies(const Deck& deck);
 
 // Steady harmonic response to the load phasor `load` at omega (rad/s): q = Im(Q e^{i phase})
 // for a load Im(P e^{i phase}). Damper k acts on the structure as the impedance Z_k (N/m, the

@@ -92,6 +92,19 @@ TEST_CASE("what a run would overflow on is refused by check, at its key") {
             .find("expected at most 3.125e+10 Hz") != std::string::npos);
 }
 
+TEST_CASE("a beam whose matrices have no modes is refused at [structure], not by a failed solver") {
+  // Found by the deck fuzz test: density = 1e-300 made the beam's eigenproblem fail, a
+  // SimulationError out of check instead of an InputError at the deck's line.
+  std::string text = load_deck(std::string(PDSIM_TEST_DIR) + "/../examples/beam_damper.toml").text;
+  const std::string density = "density = 2700.0";
+  REQUIRE(text.find(density) != std::string::npos);
+  text.replace(text.find(density), density.size(), "density = 1e-300");
+  CHECK_THROWS_WITH_AS(build_scene(parse_deck(text, "beam.toml")),
+                       doctest::Contains("'structure': expected a structure whose mass and "
+                                         "stiffness matrices have modes"),
+                       InputError);
+}
+
 TEST_CASE("a random fill beyond what random placement reaches is refused at once, by volume") {
   // 5000 spheres of 4 mm in a 20 mm box: a fill fraction of 20.9, refused before any attempt
   // (it used to try 1e7 placements first; 5e7 particles would have taken hours).

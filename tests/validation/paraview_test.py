@@ -3,7 +3,7 @@
 the particles are points with the run's count and radius, velocity and spin attributes, one
 particle's position equals the HDF5 file's at that time, and the container's wireframe is there.
 
-usage: paraview_test.py PDSIM SOURCE_DIR
+usage: paraview_test.py PDSIM SOURCE_DIR   (runs tests/decks/tiny_prescribed.toml)
 """
 import os
 import subprocess
@@ -13,28 +13,6 @@ import tempfile
 import h5py
 import numpy as np
 from paraview import simple, servermanager
-
-DECK = """
-[[damper]]
-container = { shape = "box", size = [0.02, 0.03, 0.02] }
-particles = { count = 20, diameter = 0.004, density = 7800.0, seed = 3 }
-[contact]
-model = "linear"
-tangential = "history"
-stiffness = 2000.0
-young = 2.0e8
-restitution = 0.5
-friction = 0.3
-[gravity]
-vector = [0.0, 0.0, -9.81]
-[excitation]
-kind = "prescribed"
-motion = { axis = [1.0, 0.0, 0.0], amplitude = 0.002, frequency = 20.0 }
-duration = 0.1
-[output]
-file = "run.h5"
-particles = { every = 0.01 }
-"""
 
 
 def blocks(data):
@@ -47,10 +25,11 @@ def blocks(data):
 
 def main():
     pdsim = sys.argv[1]
+    deck = os.path.join(sys.argv[2], "tests", "decks", "tiny_prescribed.toml")
     with tempfile.TemporaryDirectory() as work:
         os.chdir(work)
-        open("run.toml", "w").write(DECK)
-        subprocess.run([pdsim, "run", "run.toml", "--quiet"], check=True, stdout=subprocess.DEVNULL)
+        subprocess.run([pdsim, "run", deck, "-o", "run.h5", "--quiet"], check=True,
+                       stdout=subprocess.DEVNULL)
         with h5py.File("run.h5", "r") as h5:
             times = h5["particles/time"][()]
             position = h5["particles/damper0/position"][()]

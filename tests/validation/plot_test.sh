@@ -17,29 +17,7 @@ sed -e 's/^kind = "stepped_sine"/kind = "free_decay"\ninitial_displacement = 0.0
     -e 's/^file = .*/file = "x.h5"\nenergy = true/' \
     "$root/tests/decks/tiny_stepped_sine.toml" > decay.toml
 "$pdsim" run decay.toml -o decay.h5 --quiet > /dev/null
-cat > box.toml <<'DECK'
-[[damper]]
-container = { shape = "box", size = [0.02, 0.02, 0.02] }
-particles = { count = 20, diameter = 0.004, density = 7800.0, seed = 3 }
-[contact]
-model = "linear"
-tangential = "history"
-stiffness = 2000.0
-young = 2.0e8
-restitution = 0.5
-friction = 0.3
-[gravity]
-vector = [0.0, 0.0, -9.81]
-[excitation]
-kind = "prescribed"
-motion = { axis = [1.0, 0.0, 0.0], amplitude = 0.002, frequency = 20.0 }
-duration = 0.2
-settle = { realisations = 1 }
-[output]
-file = "box.h5"
-particles = { every = 0.05 }
-DECK
-"$pdsim" run box.toml -o box.h5 --quiet > /dev/null
+"$pdsim" run "$root/tests/decks/tiny_prescribed.toml" -o box.h5 --quiet > /dev/null
 
 for format in png pdf; do
   "${plot[@]}" frf frf.h5 --receptance --bare -o "frf.$format"
@@ -47,7 +25,7 @@ for format in png pdf; do
   "${plot[@]}" energy decay.h5 -o "energy.$format"
   "${plot[@]}" timeseries decay.h5 -o "decay.$format"
   "${plot[@]}" prescribed box.h5 -o "prescribed.$format"
-  "${plot[@]}" bed box.h5 --time 0.1 -o "bed.$format"
+  "${plot[@]}" bed box.h5 --time 0.05 -o "bed.$format"
   for kind in frf timeseries energy prescribed decay bed; do
     [ -s "$kind.$format" ] || { echo "$kind.$format is missing or empty" >&2; exit 1; }
   done

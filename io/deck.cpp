@@ -988,22 +988,19 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
                   [](const DamperSpec& d) { return d.particles.fill == Fill::random; });
   // A random fill's response is chaotic and near resonance may lock into one of several
   // regimes for hundreds of periods: two realisations are the fewest that show it (README).
-  if (x.settle.realisations == 0)
-    x.settle.realisations =
-        random_fill && !deck.output.energy && deck.output.particles_every == 0 ? 2 : 1;
+  // The energy ledger and the particle snapshots follow one continuous run.
+  const char* one_run = deck.output.energy                ? "output.energy"
+                        : deck.output.particles_every > 0 ? "output.particles"
+                                                          : nullptr;
+  if (x.settle.realisations == 0) x.settle.realisations = random_fill && !one_run ? 2 : 1;
   if (x.settle.realisations > 1 && !random_fill)
     throw InputError(deck.where("excitation.settle.realisations"), "excitation.settle.realisations",
                      "expected 1: a lattice fill is the same for every seed, so realisations "
                      "need particles with fill = \"random\"");
-  if (deck.output.energy && (x.settle.realisations > 1 || x.start == FrequencyStart::independent))
-    throw InputError(deck.where("output.energy"), "output.energy",
-                     "expected false with settle.realisations > 1 or start = \"independent\": "
-                     "the energy ledger follows one continuous run");
-  if (deck.output.particles_every > 0 &&
-      (x.settle.realisations > 1 || x.start == FrequencyStart::independent))
-    throw InputError(deck.where("output.particles"), "output.particles",
-                     "not with settle.realisations > 1 or start = \"independent\": the particle "
-                     "snapshots follow one continuous run");
+  if (one_run && (x.settle.realisations > 1 || x.start == FrequencyStart::independent))
+    throw InputError(deck.where(one_run), one_run,
+                     "not with settle.realisations > 1 or start = \"independent\": it follows "
+                     "one continuous run");
   if (const toml::node* sweep = root.get("sweep")) {
     if (!sweep->as_table()) top.wrong(*sweep, "sweep", table);
     deck.sweep = read_sweep(*sweep->as_table(), path);

@@ -76,7 +76,7 @@ class CoupledSystem {
   Energy state_energy() const;
   long long particle_steps() const { return particle_steps_; }
   // Damper k's container now (its pose and motion in the world frame).
-  ContainerKinematics container(std::size_t k) const { return container_now(k); }
+  ContainerKinematics container_now(std::size_t k) const;
   int particle_count() const;
   const std::vector<std::unique_ptr<DemEngine>>& engines() const { return engines_; }
   void set_initial_displacement(double x0);  // free decay: displace the response DOF statically
@@ -119,7 +119,6 @@ class CoupledSystem {
   double base_energy(double t) const;
   double damping_power(const Eigen::VectorXd& v);      // W, v^T C v
   double container_displacement(std::size_t k) const;  // absolute, along direction_, m
-  ContainerKinematics container_now(std::size_t k) const;
   void step_prescribed();
   void step_explicit(bool impulse);
   void step_tight();

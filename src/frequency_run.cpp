@@ -109,7 +109,7 @@ void FrequencyRun::snapshot() {
       push(d.velocity, p.velocity);
       push(d.spin, p.spin);
     }
-    const ContainerKinematics c = system_.container(k);
+    const ContainerKinematics c = system_.container_now(k);
     push(d.container_position, c.position);
     for (const Vec3& axis : {c.axis_x, c.axis_y, c.axis_z}) push(d.container_axes, axis);
   }

@@ -169,12 +169,8 @@ template <class V>
     }
   }
   if constexpr (history) batch.scatter(pairs, a.history.neighbour_out);
-  total.dissipated_normal += dissipated_normal;
-  total.dissipated_tangential += dissipated_tangential;
-  total.dissipated_rolling += dissipated_rolling;
-  total.elastic += elastic;
-  total.spring_in += spring_in;
-  total.spring_out += spring_out;
+  add_dissipation(total, {dissipated_normal, dissipated_tangential, dissipated_rolling, elastic,
+                          spring_in, spring_out});
 }
 
 // The same for the first `walls` wall entries; their loads go to batch.load.
@@ -213,12 +209,8 @@ template <class V>
     out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
   }
   if constexpr (history) batch.scatter(walls, a.history.wall_out);
-  sum.dissipated_normal += dissipated_normal;
-  sum.dissipated_tangential += dissipated_tangential;
-  sum.dissipated_rolling += dissipated_rolling;
-  sum.elastic += elastic;
-  sum.spring_in += spring_in;
-  sum.spring_out += spring_out;
+  add_dissipation(sum, {dissipated_normal, dissipated_tangential, dissipated_rolling, elastic,
+                        spring_in, spring_out});
 }
 
 // When a particle's slot tests find no contact, its nearest partner's gap bounds how long none

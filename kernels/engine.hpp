@@ -141,6 +141,37 @@ inline void check_fits(const ContainerGeometry& g, double r_max) {
                           " m does not fit in the container");
 }
 
+// What both backends derive from a config before allocating: the radii's range, the Verlet
+// skin and the neighbour slots per particle, all checked.
+struct EngineSizes {
+  int count = 0;
+  double r_min = 0, r_max = 0, skin = 0;  // m
+  int max_neighbours = 0;
+};
+inline EngineSizes engine_sizes(const EngineConfig& c) {
+  if (c.particles.empty() || c.radius.size() != c.particles.size())
+    throw SimulationError("a DEM engine needs at least one particle and one radius per particle");
+  EngineSizes s;
+  s.count = static_cast<int>(c.particles.size());
+  const auto [r_min, r_max] = std::minmax_element(c.radius.begin(), c.radius.end());
+  s.r_min = *r_min;
+  s.r_max = *r_max;
+  s.skin = default_skin(s.r_min, c.skin);
+  s.max_neighbours = neighbour_slots(s.r_min, s.r_max, s.skin);
+  check_particle_count(s.count, s.max_neighbours);
+  check_fits(c.geometry, s.r_max);
+  return s;
+}
+
+inline std::string neighbour_overflow_message(int max_neighbours) {
+  return "neighbour list overflow (" + std::to_string(max_neighbours) +
+         " slots): particles are packed beyond the densest packing; the simulation has most "
+         "likely blown up";
+}
+
+// The checkpoint's names of the particle state's nine columns, in ParticleArrays' order.
+inline const char* const kStateNames[9] = {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"};
+
 class DemEngine {
  public:
   virtual ~DemEngine() = default;

@@ -94,4 +94,16 @@ std::string variant_string() {
   return s;
 }
 
+// What an engine needs to know of its kernel variant outside the passes.
+struct VariantInfo {
+  std::string name;  // variant_string<V>()
+  bool history = false, polydisperse = false;
+  int pair_doubles = 0;
+};
+
+template <class V>
+VariantInfo variant_info() {
+  return {variant_string<V>(), V::Tangential::kHistory, V::kPolydisperse, pair_doubles<V>()};
+}
+
 }  // namespace pdsim

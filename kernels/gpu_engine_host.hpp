@@ -94,7 +94,7 @@ class HostExec {
     };
     for (int b = 0; b < blocks; ++b)
       block_totals[b] =
-          block_sum(b, [&](int i, ParticleContribution& c) { pair_pass<V>(i, a, c); });
+          block_sum(b, [&](int i, ParticleContribution& c) { pair_pass<PairLaws<V>>(i, a, c); });
     for (int b = 0; b < blocks; ++b)
       accumulate(block_totals[b],
                  block_sum(b, [&](int i, ParticleContribution& c) { particle_pass<V>(i, a, c); }));

@@ -34,6 +34,17 @@ struct Variant {
   static constexpr bool kRotating = Rotating;
 };
 
+// The contact laws read fewer of a variant's choices than a whole step does: a pair's not the
+// container's shape, rotation or gravity, a wall's not its shape or gravity. Code instantiated
+// on these is compiled once for every variant that shares it (24 pair and 48 wall variants
+// instead of 192 each): the same code, the same results.
+template <class V>
+using PairLaws = Variant<typename V::Normal, typename V::Tangential, V::kRolling, false,
+                         V::kPolydisperse, WallShape::box, false>;
+template <class V>
+using WallLaws = Variant<typename V::Normal, typename V::Tangential, V::kRolling, false,
+                         V::kPolydisperse, WallShape::box, V::kRotating>;
+
 // Live contact-history slots are marked in bit masks, so that absent contacts cost no memory
 // traffic (a slot is read only when its bit is set in the input mask). Every scene has the
 // masks: the pair pass marks the touching slots there for the particle pass.

@@ -8,6 +8,7 @@
 #include <thread>
 #include <vector>
 
+#include "io/deck.hpp"
 #include "src/coupled_system.hpp"
 #include "src/scene.hpp"
 
@@ -154,7 +155,7 @@ void bench_coupling() {
       for (int k = 0; k < 3; ++k) {
         const Deck d = exchange_deck(beam, static_cast<CouplingScheme>(k), integrator);
         const Scene scene = build_scene(d, 1);
-        CoupledSystem system(d, scene);
+        CoupledSystem system(scene);
         system.configure(1e-5, Drive{ExcitationInput::force, 1.0, 2 * kPi * 15});
         const int steps = integrator == IntegratorKind::exact ? 20000 : 2000;
         const auto start = std::chrono::steady_clock::now();

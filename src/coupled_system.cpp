@@ -69,27 +69,27 @@ void carry_with_container(DemEngine& engine, const ContainerKinematics& from,
 
 }  // namespace
 
-CoupledSystem::CoupledSystem(const Deck& deck, const Scene& scene)
+CoupledSystem::CoupledSystem(const Scene& scene)
     : scene_(scene),
-      coupling_(deck.coupling),
-      integrator_kind_(deck.structure.integrator),
-      direction_(deck.structure.direction),
-      every_(deck.coupling.every) {
-  if (deck.structure.kind != StructureKind::none) {
-    structure_ = build_structure(deck);
+      coupling_(scene.coupling),
+      integrator_kind_(scene.structure_spec.integrator),
+      direction_(scene.structure_spec.direction),
+      every_(scene.coupling.every) {
+  if (scene.structure) {
+    structure_ = *scene.structure;
     // At rest until configure() fixes the step; holds the state restore() brings back.
     integrator_ = make_integrator(structure_, integrator_kind_, 1e-4);
     integrator_->q = integrator_->v = Eigen::VectorXd::Zero(structure_.size());
   } else {
-    prescribed_ = deck.excitation.motion;
+    prescribed_ = scene.excitation.motion;
     every_ = 1;
   }
   for (const DamperScene& d : scene.dampers) engines_.push_back(make_engine(d.engine));
   pending_force_.assign(engines_.size(), 0.0);
   force_ = force_sum_ = guess_ = torque_ = torque_sum_ = pending_torque_ = pending_force_;
   displacement_ = force_mean_ = spring_energy_ = pending_spring_energy_ = pending_force_;
-  if (deck.structure.kind == StructureKind::beam) {
-    const Vec3 axis = cross(deck.structure.beam.axis, direction_);
+  if (scene.structure_spec.kind == StructureKind::beam) {
+    const Vec3 axis = cross(scene.structure_spec.beam.axis, direction_);
     rotation_axis_ = (1.0 / norm(axis)) * axis;
   }
   const int n = structure_.size();

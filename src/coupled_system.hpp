@@ -54,7 +54,7 @@ struct Energy {
 
 class CoupledSystem {
  public:
-  CoupledSystem(const Deck& deck, const Scene& scene);
+  explicit CoupledSystem(const Scene& scene);
 
   // Fixes the step and the drive for the coming steps (a new stepped-sine frequency).
   void configure(double dt, const Drive& drive);

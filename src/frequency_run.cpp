@@ -13,12 +13,12 @@ constexpr int kRefinements = 4, kProbePeriods = 3;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 }  // namespace
 
-FrequencyRun::FrequencyRun(const Deck& deck, const Scene& scene, Progress progress)
-    : deck_(deck), scene_(scene), system_(deck, scene), progress_(std::move(progress)) {
+FrequencyRun::FrequencyRun(const Scene& scene, Progress progress)
+    : scene_(scene), system_(scene), progress_(std::move(progress)) {
   const double f_top = scene.highest_frequency > 0 ? scene.highest_frequency : first_mode();
-  sample_every_ = deck.output.every > 0 ? deck.output.every : 1.0 / (32 * f_top);
-  if (deck.output.energy) energy_.emplace();
-  if (deck.output.particles_every > 0) {
+  sample_every_ = scene.output.every > 0 ? scene.output.every : 1.0 / (32 * f_top);
+  if (scene.output.energy) energy_.emplace();
+  if (scene.output.particles_every > 0) {
     ParticleSnapshots& s = particles_.emplace();
     for (std::size_t k = 0; k < scene.dampers.size(); ++k) {
       const EngineConfig& c = scene.dampers[k].engine;
@@ -31,9 +31,8 @@ FrequencyRun::FrequencyRun(const Deck& deck, const Scene& scene, Progress progre
   }
   // Before anything is measured the bed moves with its container: a rigid mass carrying its
   // weight's component along the structure's direction.
-  const double along = deck.gravity && deck.structure.kind != StructureKind::none
-                           ? dot(*deck.gravity, deck.structure.direction)
-                           : 0.0;
+  const double along =
+      scene.gravity && scene.structure ? dot(*scene.gravity, scene.structure_spec.direction) : 0.0;
   for (const DamperScene& d : scene.dampers) {
     effective_mass_.push_back(d.particle_mass);
     effective_damping_.push_back(0.0);
@@ -42,22 +41,21 @@ FrequencyRun::FrequencyRun(const Deck& deck, const Scene& scene, Progress progre
 }
 
 double FrequencyRun::first_mode() const {
-  if (!system_.has_structure()) return 1.0;
-  return natural_frequencies(system_.structure()).front();
+  return scene_.natural_hz.empty() ? 1.0 : scene_.natural_hz.front();
 }
 
 BedReport FrequencyRun::settle_bed() {
   BedReport report;
-  if (!deck_.bed.settle || system_.engines().empty()) return report;
+  if (!scene_.bed.settle || system_.engines().empty()) return report;
   report.ran = true;
   const double dt = scene_.dt;
   const long long hold = std::llround(std::ceil(kBedHold_s / dt));
-  const long long most = std::llround(std::ceil(deck_.bed.max_time / dt));
+  const long long most = std::llround(std::ceil(scene_.bed.max_time / dt));
   long long calm = 0, steps = 0;
   while (steps < most && calm < hold) {
     if (g_stop_runs) throw Interrupted();
     report.speed = system_.settle_step(dt);
-    calm = report.speed <= deck_.bed.speed ? calm + 1 : 0;
+    calm = report.speed <= scene_.bed.speed ? calm + 1 : 0;
     ++steps;
     if (progress_ && steps % 2000 == 0) progress_(0.0, double(steps) / double(most));
   }
@@ -81,7 +79,7 @@ int FrequencyRun::configure(double frequency, double amplitude) {
   const Drive& old = system_.drive();
   const double angle = restored_ ? restored_angle_ : old.omega > 0 ? old.angle(system_.time()) : 0;
   restored_ = false;
-  Drive drive{deck_.excitation.input, amplitude, 2 * kPi * frequency, system_.time(),
+  Drive drive{scene_.excitation.input, amplitude, 2 * kPi * frequency, system_.time(),
               std::fmod(angle, 2 * kPi)};
   jump([&] { system_.configure(period / steps, drive); });
   dt_ = period / steps;
@@ -113,7 +111,7 @@ void FrequencyRun::snapshot() {
     push(d.container_position, c.position);
     for (const Vec3& axis : {c.axis_x, c.axis_y, c.axis_z}) push(d.container_axes, axis);
   }
-  next_snapshot_ += deck_.output.particles_every;
+  next_snapshot_ += scene_.output.particles_every;
 }
 
 void FrequencyRun::step() {
@@ -196,7 +194,7 @@ void FrequencyRun::learn_impedance(const PeriodSummary& mean, double omega) {
 }
 
 FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart start) {
-  const ExcitationSpec& x = deck_.excitation;
+  const ExcitationSpec& x = scene_.excitation;
   const bool prescribed = x.kind == ExcitationKind::prescribed;
   const int samples = configure(frequency, prescribed ? x.motion.amplitude : x.amplitude);
   PeriodTracker tracker(samples, system_.engines().size());
@@ -285,7 +283,7 @@ FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart star
 }
 
 void FrequencyRun::run_free_decay() {
-  const ExcitationSpec& x = deck_.excitation;
+  const ExcitationSpec& x = scene_.excitation;
   const double f1 = first_mode();
   configure(f1, 0.0);
   system_.set_initial_displacement(x.initial_displacement);

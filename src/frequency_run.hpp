@@ -44,9 +44,9 @@ class FrequencyRun {
   // `progress(frequency, fraction of this frequency done)` is called after every period.
   // frequency 0 while the bed settles
   using Progress = std::function<void(double frequency, double fraction)>;
-  FrequencyRun(const Deck& deck, const Scene& scene, Progress progress = {});
+  explicit FrequencyRun(const Scene& scene, Progress progress = {});
 
-  // Lets the particles settle under gravity, containers at rest (deck.bed); time stands still.
+  // Lets the particles settle under gravity, containers at rest (scene.bed); time stands still.
   BedReport settle_bed();
 
   // Runs `frequency` (Hz) starting as `start` says; whole periods until converged or
@@ -85,7 +85,6 @@ class FrequencyRun {
   std::complex<double> predict_start();                 // returns the predicted response, m
   void learn_impedance(const PeriodSummary& mean, double omega);
 
-  const Deck& deck_;
   const Scene& scene_;
   CoupledSystem system_;
   Progress progress_;

@@ -179,9 +179,10 @@ FrequencyPoint unpack(const std::vector<double>& v) {
 // intervals are its batch-means intervals; with several, combine_runs() pools them when the runs
 // agree and takes the spread of their means when they do not (interval kind 1 and 2). The point
 // is converged when every run is stationary and the combined interval meets the tolerance.
-void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& deck) {
-  const SettleSpec& settle = deck.excitation.settle;
-  const bool prescribed = deck.excitation.kind == ExcitationKind::prescribed;
+void add_row(Results& out, const std::vector<FrequencyPoint>& runs,
+             const ExcitationSpec& excitation) {
+  const SettleSpec& settle = excitation.settle;
+  const bool prescribed = excitation.kind == ExcitationKind::prescribed;
   std::complex<double> mean = 0;
   int periods = 0, discarded = 0;
   bool stationary = true;
@@ -222,7 +223,7 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs, const Deck& 
   const int interval = runs.size() == 1 ? 0 : amplitude.consistent && phase.consistent ? 1 : 2;
   // A fixed run asked for no tolerance: it is done when every realisation is (frequency_run).
   const bool converged =
-      runs.size() == 1 || fixed_duration(deck.excitation)
+      runs.size() == 1 || fixed_duration(excitation)
           ? std::all_of(runs.begin(), runs.end(),
                         [](const FrequencyPoint& p) { return p.judged.converged; })
           : stationary && amplitude_ci <= tolerance * size && phase_ci <= tolerance;
@@ -323,9 +324,7 @@ class Driver {
         jobs_(jobs),
         quiet_(quiet),
         dump_path_(std::move(dump_path)) {
-    const ExcitationSpec& x = deck.excitation;
-    frequencies_ = x.frequencies;
-    if (x.kind == ExcitationKind::sine) frequencies_ = {x.frequency};
+    frequencies_ = scenes_.front().frequencies;
     const std::size_t r = scenes_.size(), f = frequencies_.size();
     points_.assign(r, std::vector<std::optional<FrequencyPoint>>(f));
     beds_.resize(r);
@@ -377,11 +376,10 @@ class Driver {
     g_stop_runs = g_interrupted != 0;  // an interrupt before the start stops it at once
     checkpoint_ = checkpoint;
     stop_after_ = stop_after;
-    const ExcitationSpec& x = deck_.excitation;
+    const ExcitationSpec& x = scenes_.front().excitation;
     if (x.kind == ExcitationKind::free_decay || x.kind == ExcitationKind::sine) {
       Progress progress(quiet_, 1, 1.0, false);
-      FrequencyRun run(deck_, scenes_[0],
-                       [&](double f, double done) { progress.update(0, done, f); });
+      FrequencyRun run(scenes_[0], [&](double f, double done) { progress.update(0, done, f); });
       try {
         reports_[0] = run.settle_bed();
         if (x.kind == ExcitationKind::free_decay) {
@@ -416,7 +414,9 @@ class Driver {
   static std::string point_key(std::size_t r, std::size_t i) {
     return "point.r" + std::to_string(r) + ".f" + std::to_string(i);
   }
-  bool independent() const { return deck_.excitation.start == FrequencyStart::independent; }
+  bool independent() const {
+    return scenes_.front().excitation.start == FrequencyStart::independent;
+  }
 
   // The /frf (or /prescribed) rows of every frequency all of whose runs have finished, in the
   // order of the frequency list.
@@ -425,7 +425,7 @@ class Driver {
       std::vector<FrequencyPoint> runs;
       for (const auto& per_frequency : points_)
         if (per_frequency[i]) runs.push_back(*per_frequency[i]);
-      if (runs.size() == points_.size()) add_row(out, runs, deck_);
+      if (runs.size() == points_.size()) add_row(out, runs, scenes_.front().excitation);
     }
   }
 
@@ -516,7 +516,7 @@ class Driver {
     for (std::size_t r = 0; r < scenes_.size(); ++r)
       if (beds_[r].empty()) missing.push_back(r);
     if (missing.empty()) return;
-    const std::string& file = deck_.bed.file;
+    const std::string& file = scenes_.front().bed.file;
     const std::string fingerprint = bed_fingerprint(deck_, scenes_[0]);
     if (!file.empty() && std::filesystem::exists(file)) {
       Results saved = read_results(file);
@@ -536,8 +536,7 @@ class Driver {
     }
     in_parallel(missing.size(), [&](std::size_t k) {
       const std::size_t r = missing[k];
-      FrequencyRun run(deck_, scenes_[r],
-                       [&](double f, double done) { progress.update(r, done, f); });
+      FrequencyRun run(scenes_[r], [&](double f, double done) { progress.update(r, done, f); });
       try {
         reports_[r] = run.settle_bed();
       } catch (const SimulationError& e) {
@@ -579,15 +578,14 @@ class Driver {
     double total = 0;
     for (const Task& t : tasks) total += double(t.frequencies.size());
     Progress progress(quiet_, std::max(tasks.size(), scenes_.size()), std::max(total, 1.0),
-                      !fixed_duration(deck_.excitation));
+                      !fixed_duration(scenes_.front().excitation));
     progress_ = &progress;
     settle_beds(progress);
     in_parallel(tasks.size(), [&](std::size_t k) {
       const Task& task = tasks[k];
       const std::size_t r = task.realisation;
       double done = 0;
-      FrequencyRun run(deck_, scenes_[r],
-                       [&](double f, double d) { progress.update(k, done + d, f); });
+      FrequencyRun run(scenes_[r], [&](double f, double d) { progress.update(k, done + d, f); });
       StateArrays carried;  // copied under the lock: other tasks write their states meanwhile
       {
         std::lock_guard<std::mutex> lock(mutex_);
@@ -603,7 +601,7 @@ class Driver {
       for (std::size_t i : task.frequencies) {
         FrequencyPoint point;
         try {
-          point = run.run_frequency(frequencies_[i], deck_.excitation.start);
+          point = run.run_frequency(frequencies_[i], scenes_.front().excitation.start);
         } catch (const SimulationError& e) {
           fail(run, r, e);
         }
@@ -685,7 +683,7 @@ class Driver {
   std::string describe(const FrequencyPoint& p, std::size_t r) const {
     std::ostringstream s;
     s.precision(4);
-    const bool prescribed = deck_.excitation.kind == ExcitationKind::prescribed;
+    const bool prescribed = scenes_.front().excitation.kind == ExcitationKind::prescribed;
     const double size = std::abs(p.judged.mean);
     s << "f = " << p.frequency << " Hz";
     if (scenes_.size() > 1) s << " (realisation " << r + 1 << ")";
@@ -693,7 +691,7 @@ class Driver {
       << (prescribed ? " N" : " mm") << " +- "
       << 100 * p.judged.amplitude_ci / std::max(size, 1e-300) << " %, " << p.judged.periods
       << " periods (" << p.judged.discarded << " warm-up)";
-    if (fixed_duration(deck_.excitation))
+    if (fixed_duration(scenes_.front().excitation))
       s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
     else
       s << (p.judged.converged ? ", converged" : ", NOT converged: " + p.judged.reason);
@@ -712,19 +710,20 @@ class Driver {
     t["backend"] = backend_.empty() ? "none (no particles)" : backend_;
     t["kernel_variant"] = variant_.empty() ? "none" : variant_;
     const char* schemes[] = {"loose", "interleaved", "tight"};
-    t["coupling"] = schemes[static_cast<int>(deck_.coupling.scheme)];
+    t["coupling"] = schemes[static_cast<int>(scenes_.front().coupling.scheme)];
     const Scene& scene = scenes_[0];
     t["dt_basis"] = scene.dt_basis;
     if (!scene.warning.empty()) t["warning"] = scene.warning;
-    const ExcitationKind kind = deck_.excitation.kind;
+    const ExcitationKind kind = scenes_.front().excitation.kind;
     if (kind == ExcitationKind::stepped_sine || kind == ExcitationKind::prescribed)
-      t["start"] = start_name(deck_.excitation.start);
+      t["start"] = start_name(scenes_.front().excitation.start);
     const BedReport& bed = reports_[0];
-    t["bed"] = !bed.ran         ? "not settled (bed.settle = false, or no gravity or particles)"
-               : bed_from_file_ ? "read from " + deck_.bed.file
-               : bed.settled
-                   ? "settled in " + number(bed.time_s) + " s"
-                   : "NOT settled within bed.max_time = " + number(deck_.bed.max_time) + " s";
+    t["bed"] =
+        !bed.ran         ? "not settled (bed.settle = false, or no gravity or particles)"
+        : bed_from_file_ ? "read from " + scenes_.front().bed.file
+        : bed.settled
+            ? "settled in " + number(bed.time_s) + " s"
+            : "NOT settled within bed.max_time = " + number(scenes_.front().bed.max_time) + " s";
     n["bed_settled"] = bed.settled ? 1 : 0;
     n["bed_settle_time_s"] = bed.time_s;
     n["bed_speed"] = bed.speed;
@@ -1001,8 +1000,7 @@ std::string check_report(const Deck& deck, const Scene& scene) {
   s << "deck: " << deck.path << (deck.title.empty() ? "" : " (" + deck.title + ")") << "\n";
   double structure_mass = 0;
   if (deck.structure.kind != StructureKind::none) {
-    const LinearStructure st = build_structure(deck);
-    const auto f = natural_frequencies(st);
+    const std::vector<double>& f = scene.natural_hz;
     structure_mass =
         deck.structure.kind == StructureKind::sdof
             ? deck.structure.mass

@@ -1,5 +1,6 @@
 #include "src/scene.hpp"
 
+#include "io/deck.hpp"
 #include "structure/structure.hpp"
 
 #include <algorithm>
@@ -193,10 +194,15 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
 
 namespace {
 
+Locate locate(const Deck& deck) {
+  return [&deck](const std::string& key) { return deck.where(key); };
+}
+
 // What a run will count and compute must be representable, so that `check` refuses what the
 // run would overflow on: a period's steps in an int (FrequencyRun::configure), and structural
 // matrices that stay finite at every frequency of the deck.
-void check_feasible(const Deck& deck, const Scene& s, const std::vector<double>& frequencies) {
+void check_feasible(const Deck& deck, const Scene& s) {
+  const std::vector<double>& frequencies = s.frequencies;
   const ExcitationSpec& x = deck.excitation;
   const std::string f_key = x.kind == ExcitationKind::sine ? "excitation.frequency"
                             : deck.positions.count("excitation.frequencies")
@@ -222,8 +228,8 @@ void check_feasible(const Deck& deck, const Scene& s, const std::vector<double>&
                            " steps a period at " + format(f) + " Hz: expected at most " +
                            format(kMaxStepsPerPeriod) + " (raise dt or the frequency)");
   }
-  if (deck.structure.kind == StructureKind::none) return;
-  const LinearStructure st = build_structure(deck);
+  if (!s.structure) return;
+  const LinearStructure& st = *s.structure;
   bool finite = st.mass.allFinite() && st.stiffness.allFinite() && st.damping.allFinite();
   for (double f : frequencies) {
     const double w = 2 * kPi * f;
@@ -244,8 +250,8 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
 
   // Backend: auto takes the GPU when there is one.
   const Backend wanted = backend.value_or(deck.solver.backend);
-  std::string gpu;
-  const bool have_gpu = cuda_device_available(&gpu);
+  std::string gpu;  // probed only when the deck or the command line may want it
+  const bool have_gpu = wanted != Backend::cpu && cuda_device_available(&gpu);
   if (wanted == Backend::cuda && !have_gpu)
     throw InputError(deck.where("solver.backend"), "solver.backend",
                      "\"cuda\" requested but no usable CUDA device (" + gpu + ")");
@@ -348,11 +354,20 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   }
 
   const ExcitationSpec& x = deck.excitation;
-  std::vector<double> f = x.frequencies;
+  std::vector<double>& f = s.frequencies;
+  f = x.frequencies;
   if (x.kind == ExcitationKind::sine) f = {x.frequency};
   if (x.kind == ExcitationKind::prescribed && f.empty()) f = {x.motion.frequency};
   if (!f.empty()) {
     s.highest_frequency = *std::max_element(f.begin(), f.end());
+  }
+  if (deck.structure.kind != StructureKind::none) {
+    s.structure = build_structure(deck);
+    try {
+      s.natural_hz = natural_frequencies(*s.structure);
+    } catch (const SimulationError&) {
+      throw_no_modes(locate(deck));
+    }
   }
   if (deck.dampers.empty()) {
     // Bare structure: the exact propagator has no step limit; sample 256 steps a period.
@@ -365,7 +380,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     // The impulse kick is consistent only for modes the exchange interval resolves; stiff FE
     // modes (omega h >> 1) answer it with aliased or growing motion (tests/src: a full
     // 20-element cantilever loses the damper's moment or blows up).
-    const double omega_max = 2 * kPi * structure_frequencies(deck).back();
+    const double omega_max = 2 * kPi * s.natural_hz.back();
     const double h = s.dt * deck.coupling.every;
     if (omega_max * h > 2.0)
       throw InputError(deck.where("coupling.scheme"), "coupling.scheme",
@@ -379,9 +394,29 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   if (deck.coupling.scheme == CouplingScheme::tight && deck.coupling.every != 1)
     throw InputError(deck.where("coupling.every"), "coupling.every",
                      "tight coupling iterates every DEM step: expected 1");
-  check_feasible(deck, s, f);
+  check_feasible(deck, s);
   for (auto& d : s.dampers) d.engine.dt = s.dt;
+  s.structure_spec = deck.structure;
+  s.excitation = deck.excitation;
+  s.coupling = deck.coupling;
+  s.bed = deck.bed;
+  s.output = deck.output;
+  s.gravity = deck.gravity;
   return s;
+}
+
+LinearStructure build_structure(const Deck& deck) {
+  std::vector<Mount> mounts;
+  for (const DamperSpec& d : deck.dampers) mounts.push_back({d.attach_node, d.attach_x});
+  return build_structure(deck.structure, mounts, locate(deck));
+}
+
+std::vector<double> structure_frequencies(const Deck& deck) {
+  try {
+    return natural_frequencies(build_structure(deck));
+  } catch (const SimulationError&) {
+    throw_no_modes(locate(deck));
+  }
 }
 
 }  // namespace pdsim

@@ -1,15 +1,20 @@
-// The scene: the deck turned into what the solver runs (particle masses, contact constants,
-// time step, kernel variant, initial particle positions), with the physical cross-checks that
-// need derived quantities (particles fit, dt below the stability limit). deck -> scene -> solver.
+// The scene: the deck compiled into what the solver runs (the built structure, the frequency
+// list, particle masses, contact constants, time step, kernel variant, initial particle
+// positions), with the physical cross-checks that need derived quantities (particles fit, dt
+// below the stability limit). deck -> scene -> solver: the coupled system and the frequency
+// runs take only the scene.
 #pragma once
 
 #include <string>
 #include <vector>
 
-#include "io/deck.hpp"
+#include "io/specs.hpp"
 #include "kernels/engine.hpp"
+#include "structure/structure.hpp"
 
 namespace pdsim {
+
+struct Deck;  // io/deck.hpp: only build_scene() and the deck helpers below read it
 
 struct DamperScene {
   EngineConfig engine;       // dt is filled per run segment by the solver
@@ -29,11 +34,27 @@ struct Scene {
   std::string dt_basis;      // how dt was chosen
   double highest_frequency = 0;
   int threads = 0;
+
+  // What the run does, as the deck says, checked.
+  StructureSpec structure_spec;              // kind none: the containers' motion is prescribed
+  std::optional<LinearStructure> structure;  // built once, here (with a damper at each mount)
+  std::vector<double> natural_hz;            // the structure's natural frequencies, ascending
+  std::vector<double> frequencies;           // Hz, the excitation's, in the order they run
+  ExcitationSpec excitation;
+  CouplingSpec coupling;
+  BedSpec bed;
+  OutputSpec output;
+  std::optional<Vec3> gravity;
 };
 
 // Validates the physical consistency of `deck` and derives the scene. `threads` and `backend`
 // override the deck's [solver] values when given (command line).
 Scene build_scene(const Deck& deck, int threads = 0, std::optional<Backend> backend = {});
+
+// The deck's structure with its dampers' mounts; errors name the deck's keys.
+LinearStructure build_structure(const Deck& deck);
+// Natural frequencies (Hz) of the deck's structure, ascending; an InputError when it has none.
+std::vector<double> structure_frequencies(const Deck& deck);
 
 // Restitution-consistent damping factors (brief section 2).
 double linear_damping_factor(double restitution);  // c = factor sqrt(m* k)

@@ -66,8 +66,7 @@ MatrixXd symmetric_part(const MatrixXd& a) {
   return 0.5 * (a + a.transpose());
 }
 
-LinearStructure build_sdof(const Deck& deck) {
-  const StructureSpec& spec = deck.structure;
+LinearStructure build_sdof(const StructureSpec& spec, std::size_t dampers_count) {
   LinearStructure s;
   s.mass = MatrixXd::Constant(1, 1, spec.mass);
   s.damping = MatrixXd::Constant(1, 1, spec.damping);
@@ -75,8 +74,8 @@ LinearStructure build_sdof(const Deck& deck) {
   s.base_influence = VectorXd::Ones(1);
   s.base_mass = spec.mass;
   s.force_shape = VectorXd::Ones(1);
-  const auto dampers = static_cast<Eigen::Index>(deck.dampers.size());
-  s.attachments.assign(deck.dampers.size(), Attachment{0, -1, 0.0, 0});
+  const auto dampers = static_cast<Eigen::Index>(dampers_count);
+  s.attachments.assign(dampers_count, Attachment{0, -1, 0.0, 0});
   s.attachment_translation = MatrixXd::Ones(dampers, 1);
   s.attachment_rotation = MatrixXd::Zero(dampers, 1);
   s.response = Eigen::RowVectorXd::Ones(1);
@@ -85,33 +84,31 @@ LinearStructure build_sdof(const Deck& deck) {
 }
 
 // Node a damper is bolted to: attach.node, or attach.x snapped to the nearest node.
-int attachment_node(const Deck& deck, std::size_t damper, double element_length) {
-  const DamperSpec& d = deck.dampers[damper];
-  const BeamSpec& beam = deck.structure.beam;
+int attachment_node(const BeamSpec& beam, const Mount& mount, std::size_t damper,
+                    double element_length, const Locate& where) {
   const std::string key = "damper[" + std::to_string(damper) + "].attach";
-  if (d.attach_x) {
-    const double x = *d.attach_x;
+  if (mount.x) {
+    const double x = *mount.x;
     if (!(x >= 0 && x <= beam.length)) {
-      throw InputError(deck.where(key), key,
+      throw InputError(where(key), key,
                        "x = " + std::to_string(x) + " m is outside the beam [0, " +
                            std::to_string(beam.length) + "] m");
     }
     return static_cast<int>(std::lround(x / element_length));
   }
-  if (d.attach_node < 0 || d.attach_node > beam.elements) {
-    throw InputError(deck.where(key), key,
+  if (mount.node < 0 || mount.node > beam.elements) {
+    throw InputError(where(key), key,
                      "expected { node = 0.." + std::to_string(beam.elements) +
                          " } or { x = <m> } for a damper on a beam");
   }
-  return d.attach_node;
+  return mount.node;
 }
 
-LinearStructure build_beam(const Deck& deck) {
-  const StructureSpec& spec = deck.structure;
+LinearStructure build_beam(const StructureSpec& spec, const std::vector<Mount>& mounts,
+                           const Locate& where) {
   const BeamSpec& beam = spec.beam;
   if (beam.elements < 1 || !(beam.length > 0)) {
-    throw InputError(deck.where("structure"), "structure",
-                     "a beam needs length > 0 and elements >= 1");
+    throw InputError(where("structure"), "structure", "a beam needs length > 0 and elements >= 1");
   }
   const int nodes = beam.elements + 1;
   const double le = beam.length / beam.elements;
@@ -153,11 +150,11 @@ LinearStructure build_beam(const Deck& deck) {
   s.base_influence = s.mass.ldlt().solve(support_inertia);
   s.base_mass = rigid_translation.dot(mass_full * rigid_translation);
 
-  const auto dampers = static_cast<Eigen::Index>(deck.dampers.size());
+  const auto dampers = static_cast<Eigen::Index>(mounts.size());
   s.attachment_translation = MatrixXd::Zero(dampers, n);
   s.attachment_rotation = MatrixXd::Zero(dampers, n);
-  for (std::size_t i = 0; i < deck.dampers.size(); ++i) {
-    const int node = attachment_node(deck, i, le);
+  for (std::size_t i = 0; i < mounts.size(); ++i) {
+    const int node = attachment_node(beam, mounts[i], i, le, where);
     Attachment a;
     a.node = node;
     a.x = node * le;
@@ -184,7 +181,7 @@ LinearStructure build_beam(const Deck& deck) {
   VectorXd omega;  // rad/s
   if (reduce || modal_damping) {
     Eigen::GeneralizedSelfAdjointEigenSolver<MatrixXd> eigen(s.stiffness, s.mass);
-    if (eigen.info() != Eigen::Success) throw_no_modes(deck);
+    if (eigen.info() != Eigen::Success) throw_no_modes(where);
     modes = eigen.eigenvectors();
     omega = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();
   }
@@ -202,7 +199,7 @@ LinearStructure build_beam(const Deck& deck) {
   if (reduce) {
     if (spec.modes > n) {
       throw InputError(
-          deck.where("structure.modes"), "structure.modes",
+          where("structure.modes"), "structure.modes",
           "expected at most " + std::to_string(n) + " (the number of free DOFs of the beam)");
     }
     const MatrixXd kept = modes.leftCols(spec.modes);
@@ -220,30 +217,23 @@ LinearStructure build_beam(const Deck& deck) {
 
 }  // namespace
 
-[[noreturn]] void throw_no_modes(const Deck& deck) {
-  throw InputError(deck.where("structure"), "structure",
+[[noreturn]] void throw_no_modes(const Locate& where) {
+  throw InputError(where("structure"), "structure",
                    "expected a structure whose mass and stiffness matrices have modes (their "
                    "eigenproblem failed): look for an absurd density, young, section or mass");
 }
 
-std::vector<double> structure_frequencies(const Deck& deck) {
-  try {
-    return natural_frequencies(build_structure(deck));
-  } catch (const SimulationError&) {
-    throw_no_modes(deck);
-  }
-}
-
-LinearStructure build_structure(const Deck& deck) {
-  switch (deck.structure.kind) {
+LinearStructure build_structure(const StructureSpec& spec, const std::vector<Mount>& mounts,
+                                const Locate& where) {
+  switch (spec.kind) {
     case StructureKind::sdof:
-      return build_sdof(deck);
+      return build_sdof(spec, mounts.size());
     case StructureKind::beam:
-      return build_beam(deck);
+      return build_beam(spec, mounts, where);
     case StructureKind::none:
       break;
   }
-  throw InputError(deck.where("structure"), "structure.kind",
+  throw InputError(where("structure"), "structure.kind",
                    "no structure to build (expected \"sdof\" or \"beam\")");
 }
 

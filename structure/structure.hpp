@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "io/deck.hpp"
+#include "structure/structure_spec.hpp"
 
 namespace pdsim {
 
@@ -55,13 +55,13 @@ struct LinearStructure {
   int size() const { return static_cast<int>(mass.rows()); }
 };
 
-// Builds the model from the deck (beam: assembly, supports, optional modal reduction).
-// Throws InputError for inconsistent input (e.g. an attachment beyond the beam).
-LinearStructure build_structure(const Deck& deck);
-// Refuses, at the deck's [structure], a structure whose matrices have no modes (absurd values).
-[[noreturn]] void throw_no_modes(const Deck& deck);
-// Natural frequencies (Hz) of the deck's structure, ascending; an InputError when it has none.
-std::vector<double> structure_frequencies(const Deck& deck);
+// Builds the model (beam: assembly, supports, optional modal reduction) with a damper at each
+// mount. Throws InputError for inconsistent input (e.g. a mount beyond the beam), at the key
+// `where` places.
+LinearStructure build_structure(const StructureSpec& spec, const std::vector<Mount>& mounts,
+                                const Locate& where);
+// Refuses, at [structure], a structure whose matrices have no modes (absurd values).
+[[noreturn]] void throw_no_modes(const Locate& where);
 
 // Steady harmonic response to the load phasor `load` at omega (rad/s): q = Im(Q e^{i phase})
 // for a load Im(P e^{i phase}). Damper k acts on the structure as the impedance Z_k (N/m, the

@@ -241,7 +241,7 @@ void pair_pass_block(int begin, int end, const ParticleStepArgs& shared, const C
       ++pairs;
     }
   }
-  pair_contacts_simd<V>(pairs, batch, shared, total);
+  pair_contacts_simd<PairLaws<V>>(pairs, batch, shared, total);
   auto add = [&](int i, Vec3 force, Vec3 torque) {
     load[0][i] += force.x, load[1][i] += force.y, load[2][i] += force.z;
     load[3][i] += torque.x, load[4][i] += torque.y, load[5][i] += torque.z;
@@ -325,7 +325,7 @@ void particle_pass_block(int begin, int end, const ParticleStepArgs& shared,
   int walls = 0;
   for_each_marked(kinds, n, kWallLoads,
                   [&](int k) { walls = list_walls<V>(begin + k, shared, batch, walls, sum); });
-  wall_contacts_simd<V>(walls, batch, shared, sum);
+  wall_contacts_simd<WallLaws<V>>(walls, batch, shared, sum);
   int e = 0;  // the next wall entry
   for_each_marked(kinds, n, kPairLoads | kWallLoads, [&](int k) {
     const int i = begin + k;

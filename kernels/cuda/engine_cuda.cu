@@ -200,7 +200,7 @@ class CudaExec {
   template <class V>
   static void step(const ParticleStepArgs& args, ParticleContribution* block_totals, int blocks,
                    const CudaExec& e) {
-    pair_kernel<V><<<blocks, kBlock, 0, e.stream_>>>(args, block_totals);
+    pair_kernel<PairLaws<V>><<<blocks, kBlock, 0, e.stream_>>>(args, block_totals);
     particle_kernel<V><<<blocks, kBlock, 0, e.stream_>>>(args, block_totals);
     check(cudaGetLastError(), "step kernel launch");
   }

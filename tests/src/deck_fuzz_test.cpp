@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "io/deck.hpp"
 #include "src/scene.hpp"
 
 using namespace pdsim;

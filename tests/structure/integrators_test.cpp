@@ -8,6 +8,8 @@
 #include <memory>
 #include <vector>
 
+#include "io/deck.hpp"
+#include "src/scene.hpp"
 #include "structure/structure.hpp"
 
 namespace pdsim {

@@ -1,4 +1,6 @@
 // Structural models against closed-form beam and oscillator results.
+#include "io/deck.hpp"
+#include "src/scene.hpp"
 #include "structure/structure.hpp"
 
 #include <doctest/doctest.h>

@@ -1,0 +1,127 @@
+// What each table of a deck holds, as plain values (SI units): the parser (io/deck.hpp) fills
+// them, the scene (src/scene.hpp) keeps what the run needs. Nothing here knows the deck's text
+// or its positions, so that what runs after the scene never sees the deck.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kernels/dem_types.hpp"
+#include "src/common.hpp"
+#include "structure/structure_spec.hpp"
+
+namespace pdsim {
+
+enum class ContainerShape { box, cylinder };
+enum class Fill { random, lattice };
+enum class ExcitationKind { stepped_sine, sine, free_decay, prescribed };
+enum class ExcitationInput { force, base_displacement, base_acceleration };
+// How each stepped-sine frequency starts: `predicted` carries the particles on and puts the
+// structure on the steady state predicted from the damper's measured impedance; `carried` is the
+// physical stepped sine (the whole state carried on, nothing reset); `independent` starts every
+// frequency from the settled bed with the predicted structure state, so that they run side by
+// side.
+enum class FrequencyStart { predicted, carried, independent };
+enum class CouplingScheme { loose, interleaved, tight };
+
+struct ContainerSpec {
+  ContainerShape shape = ContainerShape::box;
+  Vec3 size;          // box: full edge lengths, m
+  double radius = 0;  // cylinder, m (axis along z)
+  double height = 0;  // cylinder, m
+};
+
+struct ParticleSpec {
+  int count = 0;
+  double diameter = 0;                        // m, monodisperse
+  std::vector<double> diameters;              // polydisperse: diameters cycled over particles
+  double diameter_min = 0, diameter_max = 0;  // polydisperse: uniform range
+  double density = 0;                         // kg/m^3
+  std::uint64_t seed = 1;
+  Fill fill = Fill::random;
+  bool polydisperse() const { return !diameters.empty() || diameter_max > 0; }
+};
+
+struct DamperSpec {
+  ContainerSpec container;
+  ParticleSpec particles;
+  int attach_node = -1;            // beam: node index (0 = start)
+  std::optional<double> attach_x;  // beam: position along the beam, m
+};
+
+struct ContactSpec {
+  NormalModel model = NormalModel::hertz;
+  TangentialModel tangential = TangentialModel::history;
+  double young = 0;  // Pa
+  double poisson = 0.3;
+  double restitution = 0.6;     // (0, 1]
+  double friction = 0.0;        // Coulomb coefficient
+  double stiffness = 0;         // N/m, linear model normal stiffness (required for `linear`)
+  double rolling_friction = 0;  // dimensionless rolling resistance coefficient (0 = off)
+};
+
+// When a frequency's response counts as steady (src/steady_state.hpp): its per-period first
+// harmonics, after the warm-up is discarded, show no relevant drift and their mean is known to
+// `tolerance` (95 % half-width relative to the amplitude; the phase's half-width in rad).
+struct SettleSpec {
+  int min_periods = 10;     // never converged before this many periods
+  int max_periods = 400;    // a frequency stops here, converged or not
+  double tolerance = 2e-2;  // relative 95 % half-width of the first-harmonic amplitude
+  int batches = 4;          // batch means an interval needs
+  int average_periods = 0;  // 0: the stationary periods found; N: the last N periods
+  int realisations = 1;     // independent runs (fill seeds seed, seed+1, ...) per frequency
+};
+struct MotionSpec {
+  Vec3 axis{1, 0, 0};    // unit
+  double amplitude = 0;  // m
+  double frequency = 0;  // Hz; for a sweep, the first of ExcitationSpec::frequencies
+};
+
+struct ExcitationSpec {
+  ExcitationKind kind = ExcitationKind::sine;
+  ExcitationInput input = ExcitationInput::force;
+  double amplitude = 0;             // N, m or m/s^2 according to `input`
+  std::vector<double> frequencies;  // Hz, in the order they are run (prescribed: never empty)
+  SettleSpec settle;
+  FrequencyStart start = FrequencyStart::predicted;  // stepped_sine (prescribed: carried)
+  double frequency = 0;                              // Hz, `sine`
+  double duration = 0;                               // s, `sine`, `free_decay`, `prescribed`
+  double initial_displacement = 0;                   // m, `free_decay`
+  MotionSpec motion;                                 // `prescribed`
+};
+
+struct CouplingSpec {
+  CouplingScheme scheme = CouplingScheme::interleaved;  // energy-consistent at the cost of loose
+  int every = 1;                                        // DEM steps per coupling exchange
+  double tolerance = 1e-6;  // tight: relative change of the interface force
+  int max_iterations = 10;  // tight
+};
+
+struct SolverSpec {
+  double dt = 0;           // s; 0 = auto
+  double dt_safety = 0.0;  // 0 = default for the contact model
+  Backend backend = Backend::automatic;
+  bool allow_unstable = false;
+  int threads = 0;  // 0 = OpenMP default
+};
+
+// The particle bed settled under gravity, container at rest, before the excitation starts.
+struct BedSpec {
+  bool settle = false;    // default: true when gravity acts on particles
+  double speed = 1e-3;    // m/s: settled when no particle moves faster, for kBedHold_s
+  double max_time = 2.0;  // s of settling at most (then the run goes on, and says so)
+  std::string file;       // settled bed read from here when it exists, else written here
+};
+constexpr double kBedHold_s = 0.02;  // a falling particle exceeds any threshold sooner
+
+struct OutputSpec {
+  std::string file;            // HDF5 path, relative to the working directory
+  double every = 0;            // s between time-series samples; 0 = automatic
+  bool energy = false;         // write /energy
+  double particles_every = 0;  // s between particle snapshots (/particles and OUT.xdmf); 0 = none
+};
+
+}  // namespace pdsim

@@ -209,6 +209,10 @@ void write_particles(hid_t parent, const ParticleSnapshots& s, const std::string
     array("position", d.position, {steps, n, 3}, "m", "particle centres, world frame");
     array("velocity", d.velocity, {steps, n, 3}, "m/s", "particle velocities, world frame");
     array("spin", d.spin, {steps, n, 3}, "rad/s", "particle angular velocities, world frame");
+    write_array(dg.id(), path, "contacts", H5T_STD_I32LE, H5T_NATIVE_INT32, d.contacts.data(),
+                {steps, n}, file, "1",
+                "contacts of each particle: the partners it overlaps and the walls it touches "
+                "(-1: not counted, snapshots resumed from an older pdsim)");
     array("container_position", d.container_position, {steps, 3}, "m", "container centre");
     array("container_axes", d.container_axes, {steps, 3, 3}, "-",
           "rows: the container's x, y and z axes in the world frame");
@@ -564,6 +568,9 @@ Results read_file(const std::string& file) {
       read("position", d.position, 3);
       read("velocity", d.velocity, 3);
       read("spin", d.spin, 3);
+      read_column(damper.get(), path, "contacts", H5T_NATIVE_INT32, d.contacts, file, 2);
+      // Snapshots from a pdsim that did not count contacts (a resumed run): -1, not known.
+      if (d.contacts.empty()) d.contacts.assign(d.position.size() / 3, -1);
       read("container_position", d.container_position, 2);
       read("container_axes", d.container_axes, 3);
     }

@@ -1,6 +1,7 @@
 // Everything a run produces, in SI units, and the HDF5 writer/reader for it (brief section 6).
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -130,6 +131,7 @@ struct DamperSnapshots {
   std::vector<double> radius;              // m, per particle (N)
   std::vector<double> position, velocity;  // m, m/s (T x N x 3)
   std::vector<double> spin;                // rad/s (T x N x 3)
+  std::vector<std::int32_t> contacts;      // partners and walls each particle touches (T x N)
   std::vector<double> container_position;  // m, centre (T x 3)
   std::vector<double> container_axes;      // rows: the container's x, y, z axes (T x 3 x 3)
 };

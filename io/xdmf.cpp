@@ -44,7 +44,8 @@ Wireframe wireframe(const DamperSnapshots& d) {
 
 // An HDF5 array's slice [t] (of shape `tail`), as an XDMF hyperslab.
 void slab(std::ostringstream& x, const std::string& source, std::size_t t, std::size_t steps,
-          const std::vector<std::size_t>& tail) {
+          const std::vector<std::size_t>& tail,
+          const char* type = "NumberType=\"Float\" Precision=\"8\"") {
   const std::size_t rank = tail.size() + 1;
   std::string dims, full = std::to_string(steps), count = "1", zeros = "0", ones = "1";
   for (std::size_t n : tail) {
@@ -54,12 +55,12 @@ void slab(std::ostringstream& x, const std::string& source, std::size_t t, std::
     zeros += " 0";
     ones += " 1";
   }
-  x << "<DataItem ItemType=\"HyperSlab\" Dimensions=\"" << dims
-    << "\" Type=\"HyperSlab\" NumberType=\"Float\" Precision=\"8\">"
+  x << "<DataItem ItemType=\"HyperSlab\" Dimensions=\"" << dims << "\" Type=\"HyperSlab\" " << type
+    << ">"
     << "<DataItem Dimensions=\"3 " << rank << "\" Format=\"XML\">" << t << zeros.substr(1) << " "
     << ones << " " << count << "</DataItem>"
-    << "<DataItem Dimensions=\"" << full << "\" NumberType=\"Float\" Precision=\"8\" "
-    << "Format=\"HDF\">" << source << "</DataItem></DataItem>\n";
+    << "<DataItem Dimensions=\"" << full << "\" " << type << " Format=\"HDF\">" << source
+    << "</DataItem></DataItem>\n";
 }
 
 }  // namespace
@@ -93,6 +94,11 @@ void write_xdmf(const std::string& h5_path, const ParticleSnapshots& s) {
       for (const char* vector : {"velocity", "spin"}) {
         x << "<Attribute Name=\"" << vector << "\" AttributeType=\"Vector\" Center=\"Node\">";
         slab(x, group + vector, t, steps, {n, 3});
+        x << "</Attribute>\n";
+      }
+      if (!d.contacts.empty()) {
+        x << "<Attribute Name=\"contacts\" AttributeType=\"Scalar\" Center=\"Node\">";
+        slab(x, group + "contacts", t, steps, {n}, "NumberType=\"Int\" Precision=\"4\"");
         x << "</Attribute>\n";
       }
       x << "</Grid>\n";

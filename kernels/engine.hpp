@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "kernels/neighbours.hpp"
-#include "kernels/particle_step.hpp"
+#include "kernels/step_args.hpp"
 #include "kernels/state_arrays.hpp"
 
 namespace pdsim {
@@ -43,18 +43,6 @@ struct EngineConfig {
 
 using StepTotals = ParticleContribution;
 
-// The step arguments fixed by the scene, the same for both backends; each engine keeps a copy
-// and adds its own array views, the container and dt every step.
-inline ParticleStepArgs scene_step_args(const EngineConfig& c) {
-  ParticleStepArgs a{};
-  a.count = static_cast<int>(c.particles.size());
-  a.mono_radius = c.radius.at(0);  // read only by monodisperse variants
-  a.mono = sphere_mass(a.mono_radius, c.density);
-  a.contact = with_damping_roots(c.contact);
-  a.geometry = c.geometry;
-  a.gravity = c.gravity.value_or(Vec3{});
-  return a;
-}
 // The cell grid and rebuild policy of an engine's checkpoint, the same for both backends.
 struct GridState {
   Grid grid{};

@@ -3,9 +3,22 @@
 #pragma once
 
 #include "kernels/engine.hpp"
+#include "kernels/particle_step.hpp"
 
 namespace pdsim {
 
+// The step arguments fixed by the scene, the same for both backends; each engine keeps a copy
+// and adds its own array views, the container and dt every step.
+inline ParticleStepArgs scene_step_args(const EngineConfig& c) {
+  ParticleStepArgs a{};
+  a.count = static_cast<int>(c.particles.size());
+  a.mono_radius = c.radius.at(0);  // read only by monodisperse variants
+  a.mono = sphere_mass(a.mono_radius, c.density);
+  a.contact = with_damping_roots(c.contact);
+  a.geometry = c.geometry;
+  a.gravity = c.gravity.value_or(Vec3{});
+  return a;
+}
 inline bool is_polydisperse(const EngineConfig& c) {
   for (double r : c.radius)
     if (r != c.radius.front()) return true;

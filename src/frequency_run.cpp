@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include "kernels/contact_count.hpp"
+
 namespace pdsim {
 
 std::atomic<bool> g_stop_runs{false};
@@ -102,12 +104,18 @@ void FrequencyRun::snapshot() {
   auto push = [](std::vector<double>& to, Vec3 v) { to.insert(to.end(), {v.x, v.y, v.z}); };
   for (std::size_t k = 0; k < s.dampers.size(); ++k) {
     DamperSnapshots& d = s.dampers[k];
+    std::vector<Vec3> centre;
     for (const ParticleState& p : system_.engines()[k]->particles()) {
       push(d.position, p.position);
       push(d.velocity, p.velocity);
       push(d.spin, p.spin);
+      centre.push_back(p.position);
     }
     const ContainerKinematics c = system_.container_now(k);
+    const EngineConfig& e = scene_.dampers[k].engine;
+    const std::vector<std::int32_t> contacts =
+        contact_counts(centre, e.radius, e.shape, e.geometry, c);
+    d.contacts.insert(d.contacts.end(), contacts.begin(), contacts.end());
     push(d.container_position, c.position);
     for (const Vec3& axis : {c.axis_x, c.axis_y, c.axis_z}) push(d.container_axes, axis);
   }

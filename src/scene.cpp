@@ -248,15 +248,14 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   const ContactSpec& contact = deck.contact;
   s.threads = threads > 0 ? threads : deck.solver.threads;
 
-  // Backend: auto takes the GPU when there is one.
   const Backend wanted = backend.value_or(deck.solver.backend);
   std::string gpu;  // probed only when the deck or the command line may want it
   const bool have_gpu = wanted != Backend::cpu && cuda_device_available(&gpu);
   if (wanted == Backend::cuda && !have_gpu)
     throw InputError(deck.where("solver.backend"), "solver.backend",
                      "\"cuda\" requested but no usable CUDA device (" + gpu + ")");
-  // "auto" stays on the CPU until the CUDA engine has been checked against it on a GPU
-  // (tests/kernels/engine_cuda_test.cpp); "cuda" selects it explicitly.
+  // "auto" stays on the CPU until the CUDA engine has passed tests/kernels/engine_gpu_test.cpp
+  // on a GPU (CI runs its orchestration on the host only); "cuda" selects it explicitly.
   s.backend = wanted == Backend::automatic ? Backend::cpu : wanted;
   s.backend_reason = wanted != Backend::automatic ? "requested"
                      : have_gpu ? "auto: CPU until the CUDA backend is validated on a GPU; "

@@ -510,9 +510,6 @@ class CpuEngine final : public DemEngine {
 }  // namespace
 }  // namespace cpu_engine
 
-template <class N, class T, bool R>
-cpu_engine::CpuStep cpu_step_of(const EngineConfig& config);  // engine_cpu_variants.cpp.in
-
 namespace {
 
 using CpuStepOf = cpu_engine::CpuStep (*)(const EngineConfig&);

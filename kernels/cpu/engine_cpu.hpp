@@ -375,10 +375,9 @@ struct PickCpuStep {
 }  // namespace cpu_engine
 
 // The CPU passes of the laws N and T and the rolling choice R, for the remaining choices of
-// `config` (engine_cpu.cpp picks this function, a generated translation unit instantiates it).
+// `config`: defined (and compiled) only in the translation units generated from
+// engine_cpu_variants.cpp.in, so that engine_cpu.cpp, which picks one, compiles none.
 template <class N, class T, bool R>
-cpu_engine::CpuStep cpu_step_of(const EngineConfig& config) {
-  return dispatch_detail::by_gravity<N, T, R>(config, cpu_engine::PickCpuStep{});
-}
+cpu_engine::CpuStep cpu_step_of(const EngineConfig& config);
 
 }  // namespace pdsim

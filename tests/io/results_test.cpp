@@ -83,6 +83,7 @@ Results full_results() {
     d.radius = std::vector<double>(n, 0.002);
     for (auto* v : {&d.position, &d.velocity, &d.spin}) *v = awkward(double(v->size() + 7 * n));
     for (auto* v : {&d.position, &d.velocity, &d.spin}) v->resize(2 * n * 3, 0.25);
+    for (std::size_t k = 0; k < 2 * n; ++k) d.contacts.push_back(static_cast<std::int32_t>(k) - 1);
     d.container_position = {0, 0, 0, 1e-3, 0, 0};
     d.container_axes = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, -1, 0, 1, 0, 0, 0, 0, 1};
   }
@@ -144,6 +145,7 @@ void check_equal(const Results& a, const Results& b) {
       CHECK(x.position == y.position);
       CHECK(x.velocity == y.velocity);
       CHECK(x.spin == y.spin);
+      CHECK(x.contacts == y.contacts);
       CHECK(x.container_position == y.container_position);
       CHECK(x.container_axes == y.container_axes);
     }

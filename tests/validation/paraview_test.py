@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """A run's particle snapshots opened with ParaView's own XDMF reader (python3-paraview, headless):
-the particles are points with the run's count and radius, velocity and spin attributes, one
-particle's position equals the HDF5 file's at that time, and the container's wireframe is there.
+the particles are points with the run's count and radius, velocity, spin and contact-count
+attributes, one particle's position and contacts equal the HDF5 file's at that time, and the
+container's wireframe is there.
 
 usage: paraview_test.py PDSIM SOURCE_DIR   (runs tests/decks/tiny_prescribed.toml)
 """
@@ -34,6 +35,7 @@ def main():
             times = h5["particles/time"][()]
             position = h5["particles/damper0/position"][()]
             centre = h5["particles/damper0/container_position"][()]
+            contacts = h5["particles/damper0/contacts"][()]
         assert len(times) == 10, times
         reader = simple.XDMFReader(FileNames=[os.path.join(work, "run.xdmf")])
         assert np.allclose(reader.TimestepValues, times), (reader.TimestepValues, times)
@@ -45,7 +47,9 @@ def main():
         assert particles.GetNumberOfPoints() == 20, particles.GetNumberOfPoints()
         names = {particles.GetPointData().GetArrayName(i)
                  for i in range(particles.GetPointData().GetNumberOfArrays())}
-        assert names == {"radius", "velocity", "spin"}, names
+        assert names == {"radius", "velocity", "spin", "contacts"}, names
+        counted = particles.GetPointData().GetArray("contacts")
+        assert [counted.GetValue(i) for i in range(20)] == list(contacts[k]), contacts[k]
         assert np.allclose(particles.GetPointData().GetArray("radius").GetValue(3), 0.002)
         for i in (0, 7, 19):
             assert np.array_equal(particles.GetPoint(i), position[k, i]), (i, particles.GetPoint(i))

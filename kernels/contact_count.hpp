@@ -1,0 +1,62 @@
+// Each particle's contacts in a state, from the positions alone: the partners it overlaps and
+// the container walls it touches. These are the contacts the engine computes at that state
+// (overlap > 0; a wall's gap below the radius), counted for snapshots, not in the hot loop.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <numeric>
+#include <vector>
+
+#include "kernels/neighbours.hpp"
+
+namespace pdsim {
+
+inline std::vector<std::int32_t> contact_counts(const std::vector<Vec3>& centre,
+                                                const std::vector<double>& radius, WallShape shape,
+                                                const ContainerGeometry& g,
+                                                const ContainerKinematics& container) {
+  const int n = static_cast<int>(centre.size());
+  std::vector<std::int32_t> count(centre.size(), 0);
+  if (n == 0) return count;
+  // Pairs: particles sorted by cell (cells 2 r_max wide, so partners are in adjacent cells),
+  // each pair tested once, from its lower sorted index.
+  const double r_max = *std::max_element(radius.begin(), radius.end());
+  const Grid grid = grid_around(container.position, g.half_size, 2 * r_max);
+  std::vector<std::int32_t> cell(centre.size()), order(centre.size());
+  std::vector<std::int32_t> start(static_cast<std::size_t>(grid.nx * grid.ny * grid.nz) + 1, 0);
+  for (std::size_t i = 0; i < centre.size(); ++i) {
+    cell[i] = cell_of(grid, centre[i]);
+    ++start[static_cast<std::size_t>(cell[i]) + 1];
+  }
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<std::int32_t> fill(start.begin(), start.end() - 1);
+  for (int i = 0; i < n; ++i) order[static_cast<std::size_t>(fill[cell[i]]++)] = i;
+  for (int a = 0; a < n; ++a) {
+    const int i = order[a];
+    for_each_nearby(grid, centre[i], start.data(), start.data() + 1, a + 1, n, [&](int b) {
+      const int j = order[b];
+      const Vec3 d = centre[i] - centre[j];
+      const double reach = radius[i] + radius[j];
+      if (dot(d, d) < reach * reach) ++count[i], ++count[j];
+    });
+  }
+  // Walls, in the container's frame.
+  const Vec3 h = g.half_size;
+  for (int i = 0; i < n; ++i) {
+    const Vec3 offset = centre[i] - container.position;
+    const Vec3 local{dot(offset, container.axis_x), dot(offset, container.axis_y),
+                     dot(offset, container.axis_z)};
+    const double r = radius[i];
+    auto wall = [&](double gap) { count[i] += gap < r ? 1 : 0; };
+    if (shape == WallShape::box) {
+      wall(local.x + h.x), wall(h.x - local.x), wall(local.y + h.y), wall(h.y - local.y);
+    } else {
+      wall(g.radius - std::sqrt(local.x * local.x + local.y * local.y));
+    }
+    wall(local.z + h.z), wall(h.z - local.z);
+  }
+  return count;
+}
+
+}  // namespace pdsim

@@ -3,9 +3,13 @@
 #
 # usage: run_liggghts.sh SCENE NP STEPS
 #   SCENE: a (196 particles, 0.04 m cube), b (8000, 0.11 x 0.11 x 0.2 m),
-#          c (100000, 0.26 x 0.26 x 0.4 m); NP: MPI ranks; STEPS: time steps of 1e-6 s.
+#          c (100000, 0.26 x 0.26 x 0.4 m): steel (E = 2e11 Pa, e = 0.5), dt = 1e-6 s, shaken
+#          4 mm at 20 Hz; p (the dense pile of `pdsim bench`: 250 particles, 0.05 m cube,
+#          E = 2e9 Pa, e = 0.6, dt = 4e-6 s, shaken 1 mm at 15 Hz); NP: MPI ranks; STEPS: timed
+#          time steps.
 # environment (optional):
 #   SKIN=<m>           neighbour skin, default 0.0005 m (0.1 d, the faster of the tried ones)
+#   WARMUP=<k>         time steps run before the timed ones (the fall from the lattice), default 0
 #   SAMPLE_EVERY=<k>   write force_log.txt (per-k-step averages of F and power) and
 #                      force_instant.txt (instantaneous F every k steps)
 #   KEEP_DIR=<dir>     run in <dir> (kept) instead of a temporary directory
@@ -18,7 +22,7 @@
 set -euo pipefail
 
 if [[ $# -ne 3 ]]; then
-  sed -n "2,17p" "$0" >&2
+  sed -n "2,21p" "$0" >&2
   exit 2
 fi
 scene=$1 ranks=$2 steps=$3
@@ -26,12 +30,14 @@ scene=$1 ranks=$2 steps=$3
   { echo "NP and STEPS must be positive integers, got '$ranks' and '$steps'" >&2; exit 2; }
 here=$(cd "$(dirname "$0")" && pwd)
 
-diameter=0.005
+diameter=0.005 young=2.0e11 restitution=0.5 dt=1.0e-6 amplitude=0.004 period=0.05
 case $scene in
   a | 196) scene=a count=196 box=(0.04 0.04 0.04) ;;
   b | 8000) scene=b count=8000 box=(0.11 0.11 0.2) ;;
   c | 100k) scene=c count=100000 box=(0.26 0.26 0.4) ;;
-  *) echo "unknown scene '$scene' (a, b or c)" >&2; exit 2 ;;
+  p | pile) scene=p count=250 box=(0.05 0.05 0.05) young=2.0e9 restitution=0.6 dt=4.0e-6
+    amplitude=0.001 period=0.0666666666666667 ;;
+  *) echo "unknown scene '$scene' (a, b, c or p)" >&2; exit 2 ;;
 esac
 
 binary=$(command -v liggghts || compgen -c lmp_ | head -n1 || true)
@@ -45,7 +51,6 @@ else
   trap 'rm -rf "$workdir"' EXIT
 fi
 
-amplitude=0.004 period=0.05
 # the domain must hold the mesh over its whole stroke: amplitude plus a diameter along x
 margin_x=0.01 margin=0.002
 python3 "$here/make_box_stl.py" "${box[@]}" "$workdir/box.stl"
@@ -56,9 +61,10 @@ sample_prefix='#'
 [[ -n ${SAMPLE_EVERY:-} ]] && sample_prefix=''
 sed -e "s/^@S@/$sample_prefix/" \
   -e "s/@SKIN@/${SKIN:-0.0005}/" \
-  -e "s/@YOUNG@/2.0e11/; s/@POISSON@/0.3/; s/@RESTITUTION@/0.5/; s/@FRICTION@/0.3/" \
-  -e "s/@DT@/1.0e-6/g; s/@AMPLITUDE@/$amplitude/g; s/@PERIOD@/$period/g" \
+  -e "s/@YOUNG@/$young/; s/@POISSON@/0.3/; s/@RESTITUTION@/$restitution/; s/@FRICTION@/0.3/" \
+  -e "s/@DT@/$dt/g; s/@AMPLITUDE@/$amplitude/g; s/@PERIOD@/$period/g" \
   -e "s/@SAMPLE_EVERY@/${SAMPLE_EVERY:-100}/g; s/@THERMO@/${THERMO:-$steps}/; s/@STEPS@/$steps/" \
+  -e "s/@WARMUP@/${WARMUP:-0}/" \
   "$here/shaken_box.in.template" >"$workdir/in.shaken_box"
 
 start=$(date +%s.%N)

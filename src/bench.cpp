@@ -122,10 +122,35 @@ long period_steps(double periods, Shake s, double dt) {
   return std::max(1L, std::lround(periods / (s.frequency * dt)));
 }
 
-// One scene the user runs: warmed up once, untimed (the fall from the fill), then the same state
-// timed over whole periods at each thread count, set-up excluded.
+// A scene after its warm-up (the fall from the fill, untimed): the engine's state and the step
+// it ends at.
+struct Warmed {
+  StateArrays state;
+  long step = 0;
+};
+Warmed warm_up(const EngineConfig& config, Shake s, double seconds) {
+  Warmed w;
+  w.step = std::lround(seconds / config.dt);
+  auto engine = make_engine(config);
+  shake(*engine, config.dt, 0, w.step, s);
+  w.state = engine->save();
+  return w;
+}
+
+// `steps` steps of the scene from its warmed state, set-up excluded: wall s; `engine` keeps the
+// engine for its figures.
+double time_warmed(const EngineConfig& config, const Warmed& w, long steps, Shake s,
+                   std::unique_ptr<DemEngine>& engine) {
+  engine = make_engine(config);
+  engine->restore(w.state);
+  const auto start = std::chrono::steady_clock::now();
+  shake(*engine, config.dt, w.step, steps, s);
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// One scene the user runs: warmed up once, then timed over whole periods from the same state at
+// each thread count.
 void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOptions& o) {
-  const long warm = std::lround(o.warmup / config.dt);
   const long steps = period_steps(o.periods, s, config.dt);
   std::printf(
       "\n# %s; shaken %g mm at %g Hz along x, dt = %g s: %g s of warm-up from a "
@@ -134,20 +159,11 @@ void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOpti
   std::printf("%-10s %-8s %-9s %-10s %-14s %-16s %s\n", "particles", "threads", "steps", "wall_s",
               "psteps_per_s", "bytes/particle", "variant");
   config.threads = *std::max_element(o.threads.begin(), o.threads.end());
-  StateArrays warmed;
-  {
-    auto engine = make_engine(config);
-    shake(*engine, config.dt, 0, warm, s);
-    warmed = engine->save();
-  }
+  const Warmed warmed = warm_up(config, s, o.warmup);
   for (int t : o.threads) {
     config.threads = t;
-    auto engine = make_engine(config);
-    engine->restore(warmed);
-    const auto start = std::chrono::steady_clock::now();
-    shake(*engine, config.dt, warm, steps, s);
-    const double wall =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::unique_ptr<DemEngine> engine;
+    const double wall = time_warmed(config, warmed, steps, s, engine);
     const double ps = static_cast<double>(steps) * engine->count();
     std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %s\n", engine->count(), t, steps, wall,
                 ps / wall, engine->bytes_per_particle(), engine->variant().c_str());
@@ -299,22 +315,28 @@ int run_bench(const BenchOptions& o) {
   if (o.jobs > 0) {
     // Independent scenes side by side (sweep points): the throughput of the whole machine.
     std::printf(
-        "\n# %d copies of each scene at once, one thread each (as `pdsim sweep` runs points); "
+        "\n# %d copies of each box at once, one thread each (as `pdsim sweep` runs points), %s; "
         "psteps_per_s counts all copies\n",
-        o.jobs);
+        o.jobs,
+        o.steps > 0 ? "from the lattice, set-up included"
+                    : "whole periods from one warmed state, set-up excluded");
     std::printf("%-10s %-8s %-9s %-10s %-14s\n", "particles", "jobs", "steps", "wall_s",
                 "psteps_per_s");
     for (int n : o.particles) {
-      const long steps = o.steps > 0 ? o.steps : std::max(200L, 20000000L / n);
-      const EngineConfig c = bench_config(n, 1, backend);
-      std::vector<long long> ps(static_cast<std::size_t>(o.jobs));
-      const auto start = std::chrono::steady_clock::now();
+      const EngineConfig c =
+          bench_config(n, 1, backend, o.steps > 0 ? Fill::lattice : Fill::random);
+      const long steps = o.steps > 0 ? o.steps : period_steps(o.periods, kBoxShake, c.dt);
+      const Warmed warmed = o.steps > 0 ? Warmed{} : warm_up(c, kBoxShake, o.warmup);
+      std::vector<double> walls(static_cast<std::size_t>(o.jobs));
       std::vector<std::thread> copies;
-      std::vector<std::exception_ptr> errors(ps.size());
-      for (std::size_t k = 0; k < ps.size(); ++k)
+      std::vector<std::exception_ptr> errors(walls.size());
+      for (std::size_t k = 0; k < walls.size(); ++k)
         copies.emplace_back([&, k] {
           try {
-            time_engine(c, steps, &ps[k]);
+            long long ps = 0;
+            std::unique_ptr<DemEngine> engine;
+            walls[k] = o.steps > 0 ? time_engine(c, steps, &ps)
+                                   : time_warmed(c, warmed, steps, kBoxShake, engine);
           } catch (...) {
             errors[k] = std::current_exception();
           }
@@ -322,10 +344,9 @@ int run_bench(const BenchOptions& o) {
       for (auto& copy : copies) copy.join();
       for (const auto& error : errors)
         if (error) std::rethrow_exception(error);
-      const double wall =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      double total = 0;
-      for (long long p : ps) total += static_cast<double>(p);
+      // The copies ran together: the machine's rate is their work over the longest one's time.
+      const double wall = *std::max_element(walls.begin(), walls.end());
+      const double total = static_cast<double>(o.jobs) * static_cast<double>(steps) * n;
       std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g\n", n, o.jobs, steps, wall, total / wall);
       std::fflush(stdout);
     }

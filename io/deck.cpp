@@ -1052,6 +1052,24 @@ Deck sweep_point(const Deck& deck, int point) {
   }
 }
 
+Deck with_snapshots(Deck deck, double every) {
+  const std::string key = "excitation.settle.realisations";
+  ExcitationSpec& x = deck.excitation;
+  if (!deck.positions.count(key)) x.settle.realisations = 1;  // the default of one continuous run
+  if (x.settle.realisations > 1 || x.start == FrequencyStart::independent) {
+    const std::string at = x.start == FrequencyStart::independent ? "excitation.start" : key;
+    throw InputError(deck.where(at), at,
+                     "not with --snapshots: snapshots follow one continuous run (expected "
+                     "settle.realisations = 1 and a start other than \"independent\")");
+  }
+  deck.output.particles_every = every;
+  std::ostringstream note;
+  note.precision(17);
+  note << "\n# pdsim run --snapshots " << every << "\n";
+  deck.text += note.str();
+  return deck;
+}
+
 Deck load_deck(const std::string& path) {
   std::ifstream file(path, std::ios::binary);
   if (!file) throw InputError(SourcePos{path, 0, 0}, "", "cannot open the deck file");

@@ -51,6 +51,12 @@ struct Deck {
 Deck load_deck(const std::string& path);
 Deck parse_deck(const std::string& text, const std::string& path);
 
+// The deck with particle snapshots every `every` seconds (`pdsim run --snapshots`), as if its
+// [output] said particles = { every = ... }: a run of one continuous history, so
+// settle.realisations defaults to 1 (and an explicit > 1 or start = "independent" is refused). The
+// switch joins the deck's text, its provenance.
+Deck with_snapshots(Deck deck, double every);
+
 // Sweep point `point` (1 to deck.sweep.points()) of a deck: the deck with that point's values,
 // validated. An error names the [sweep] entry that set the value, and the point.
 Deck sweep_point(const Deck& deck, int point);

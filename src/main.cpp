@@ -49,6 +49,11 @@ int main(int argc, char** argv) {
                   "stop after N frequencies, keeping the checkpoint for --resume")
       ->check(kCount);
   int point = 0;
+  double snapshots = 0;  // s between particle snapshots (--snapshots), 0 = the deck's
+  run->add_option("--snapshots", snapshots,
+                  "write particle snapshots every S seconds, for ParaView (as the deck's [output] "
+                  "particles = { every = S })")
+      ->check(CLI::PositiveNumber);
   run->add_option("--point", point, "run one point of the deck's [sweep] table (1 to N)")
       ->check(kCount);
 
@@ -97,6 +102,7 @@ int main(int argc, char** argv) {
       return pdsim::run_sweep(deck, sweep_options);
     }
     if (point > 0) deck = pdsim::sweep_point(deck, point);
+    if (snapshots > 0) deck = pdsim::with_snapshots(std::move(deck), snapshots);
     if (*modes) {
       if (deck.structure.kind == pdsim::StructureKind::none)
         throw pdsim::InputError(deck.path + ": the deck has no [structure]");

@@ -107,6 +107,32 @@ TEST_CASE("a run writes its file with provenance and refuses to overwrite it") {
   CHECK(box.pdsim("run --quiet --force '" + deck("tiny_stepped_sine.toml") + "'") == 0);
 }
 
+TEST_CASE("run --snapshots writes the particles of one continuous run, or says why it cannot") {
+  Sandbox box;
+  std::string log;
+  // The tiny stepped sine has a random fill and no realisations key: two realisations by
+  // default, one with snapshots (they follow one continuous run).
+  REQUIRE(box.pdsim("run --quiet --snapshots 0.02 -o s.h5 '" + deck("tiny_stepped_sine.toml") + "'",
+                    &log) == 0);
+  const pdsim::Results r = pdsim::read_results((box.dir / "s.h5").string());
+  REQUIRE(r.particles);
+  REQUIRE(r.particles->time.size() >= 2);
+  // Each snapshot is taken at the first step at or after its time: within a step (13 us here).
+  CHECK(r.particles->time[1] - r.particles->time[0] == doctest::Approx(0.02).epsilon(0.01));
+  CHECK(r.particles->dampers.at(0).radius.size() == 20);
+  CHECK(fs::exists(box.dir / "s.xdmf"));
+  CHECK(r.meta_text.at("deck").find("--snapshots 0.02") != std::string::npos);
+  // Two realisations asked for explicitly: refused before any step, naming the key.
+  REQUIRE(box.shell("sed 's/batches = 2 }/batches = 2, realisations = 2 }/' '" +
+                    deck("tiny_stepped_sine.toml") + "' > two.toml") == 0);
+  CHECK(box.pdsim("run --quiet --snapshots 0.02 -o t.h5 two.toml", &log) == 1);
+  CHECK(log.find("two.toml:25:") != std::string::npos);
+  CHECK(log.find("'excitation.settle.realisations'") != std::string::npos);
+  CHECK(log.find("--snapshots") != std::string::npos);
+  CHECK_FALSE(fs::exists(box.dir / "t.h5"));
+  CHECK(box.pdsim("run --quiet --snapshots 0 two.toml", &log) == 1);
+}
+
 TEST_CASE("a fixed-duration run reports its means with an interval and claims no steady state") {
   // A softened shaken box of 60 spheres, 5 periods, the last 4 averaged: too few for the
   // steady-state test's 4 batches of at least 5 periods, which once gave "+- inf" and

@@ -60,10 +60,22 @@ void shake(DemEngine& engine, double dt, long first, long steps, Shake s = kBoxS
   }
 }
 
-// Wall time of a whole run: engine set-up and `steps` steps from step `first`. `bytes`, when
-// given, receives the engine's memory per particle at the end (its lists sized by the run).
+// A fingerprint of the final state, printed with every digit: two builds that compute the same
+// trajectories print the same value (an engine change meant to keep results bitwise is checked
+// against the commit before it this way).
+double state_sum(const DemEngine& engine) {
+  double sum = 0;
+  for (const ParticleState& p : engine.particles())
+    sum += p.position.x + p.position.y + p.position.z + p.velocity.x + p.velocity.y + p.velocity.z +
+           1e-3 * (p.spin.x + p.spin.y + p.spin.z);
+  return sum;
+}
+
+// Wall time of a whole run: engine set-up and `steps` steps from step `first`. `bytes` and `sum`,
+// when given, receive the engine's memory per particle at the end (its lists sized by the run)
+// and state_sum().
 double time_engine(const EngineConfig& config, long steps, long long* particle_steps,
-                   long first = 0, std::size_t* bytes = nullptr) {
+                   long first = 0, std::size_t* bytes = nullptr, double* sum = nullptr) {
   const auto start = std::chrono::steady_clock::now();
   auto engine = make_engine(config);
   shake(*engine, config.dt, first, steps);
@@ -71,6 +83,7 @@ double time_engine(const EngineConfig& config, long steps, long long* particle_s
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (bytes) *bytes = engine->bytes_per_particle();
+  if (sum) *sum = state_sum(*engine);
   return wall;
 }
 
@@ -156,8 +169,8 @@ void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOpti
       "\n# %s; shaken %g mm at %g Hz along x, dt = %g s: %g s of warm-up from a "
       "random fill (untimed), then %g periods (%ld steps) timed\n",
       title, 1e3 * s.amplitude, s.frequency, config.dt, o.warmup, o.periods, steps);
-  std::printf("%-10s %-8s %-9s %-10s %-14s %-16s %s\n", "particles", "threads", "steps", "wall_s",
-              "psteps_per_s", "bytes/particle", "variant");
+  std::printf("%-10s %-8s %-9s %-10s %-14s %-16s %-34s %s\n", "particles", "threads", "steps",
+              "wall_s", "psteps_per_s", "bytes/particle", "variant", "state_sum");
   config.threads = *std::max_element(o.threads.begin(), o.threads.end());
   const Warmed warmed = warm_up(config, s, o.warmup);
   for (int t : o.threads) {
@@ -165,8 +178,9 @@ void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOpti
     std::unique_ptr<DemEngine> engine;
     const double wall = time_warmed(config, warmed, steps, s, engine);
     const double ps = static_cast<double>(steps) * engine->count();
-    std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %s\n", engine->count(), t, steps, wall,
-                ps / wall, engine->bytes_per_particle(), engine->variant().c_str());
+    std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %-34s %.17g\n", engine->count(), t, steps,
+                wall, ps / wall, engine->bytes_per_particle(), engine->variant().c_str(),
+                state_sum(*engine));
     std::fflush(stdout);
   }
 }
@@ -298,16 +312,17 @@ int run_bench(const BenchOptions& o) {
     std::printf(
         "# shaken steel-sphere box: d = 5 mm, hertz/history, gravity, dt = 1e-6 s, "
         "lattice start, x = 0.004 sin(2 pi 20 t); set-up included\n");
-    std::printf("%-10s %-8s %-9s %-10s %-14s %-16s %s\n", "particles", "threads", "steps", "wall_s",
-                "psteps_per_s", "bytes/particle", "variant");
+    std::printf("%-10s %-8s %-9s %-10s %-14s %-16s %-34s %s\n", "particles", "threads", "steps",
+                "wall_s", "psteps_per_s", "bytes/particle", "variant", "state_sum");
     for (int n : o.particles) {
       for (int t : o.threads) {
         EngineConfig c = bench_config(n, t, backend);
         long long ps = 0;
         std::size_t bytes = 0;
-        const double wall = time_engine(c, o.steps, &ps, 0, &bytes);
-        std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %s\n", n, t, o.steps, wall,
-                    static_cast<double>(ps) / wall, bytes, variant_name(c).c_str());
+        double sum = 0;
+        const double wall = time_engine(c, o.steps, &ps, 0, &bytes, &sum);
+        std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %-34s %.17g\n", n, t, o.steps, wall,
+                    static_cast<double>(ps) / wall, bytes, variant_name(c).c_str(), sum);
         std::fflush(stdout);
       }
     }

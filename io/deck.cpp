@@ -926,6 +926,30 @@ toml::table parse_root(const std::string& text, const std::string& path) {
   }
 }
 
+// How many realisations a frequency runs, resolved once the fill and the outputs are known
+// (settle.realisations is 0 when not given). A random fill's response is chaotic and near
+// resonance may lock into one of several regimes for hundreds of periods: two realisations are
+// the fewest that show it (README). The energy ledger and the particle snapshots follow one
+// continuous run: one realisation by default, several or independent starts refused.
+void settle_realisations(Deck& deck) {
+  ExcitationSpec& x = deck.excitation;
+  const bool random_fill =
+      std::any_of(deck.dampers.begin(), deck.dampers.end(),
+                  [](const DamperSpec& d) { return d.particles.fill == Fill::random; });
+  const char* one_run = deck.output.energy                ? "output.energy"
+                        : deck.output.particles_every > 0 ? "output.particles"
+                                                          : nullptr;
+  if (x.settle.realisations == 0) x.settle.realisations = random_fill && !one_run ? 2 : 1;
+  if (x.settle.realisations > 1 && !random_fill)
+    throw InputError(deck.where("excitation.settle.realisations"), "excitation.settle.realisations",
+                     "expected 1: a lattice fill is the same for every seed, so realisations "
+                     "need particles with fill = \"random\"");
+  if (one_run && (x.settle.realisations > 1 || x.start == FrequencyStart::independent))
+    throw InputError(deck.where(one_run), one_run,
+                     "not with settle.realisations > 1 or start = \"independent\": it follows "
+                     "one continuous run");
+}
+
 Deck read_deck(const toml::table& root, const std::string& text, const std::string& path) {
   Deck deck;
   deck.path = path;
@@ -982,25 +1006,7 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
   if (const auto coupling = top.sub("coupling", table)) deck.coupling = read_coupling(*coupling);
   if (const auto solver = top.sub("solver", table)) deck.solver = read_solver(*solver);
   if (const auto output = top.sub("output", table)) deck.output = read_output(*output);
-  ExcitationSpec& x = deck.excitation;
-  const bool random_fill =
-      std::any_of(deck.dampers.begin(), deck.dampers.end(),
-                  [](const DamperSpec& d) { return d.particles.fill == Fill::random; });
-  // A random fill's response is chaotic and near resonance may lock into one of several
-  // regimes for hundreds of periods: two realisations are the fewest that show it (README).
-  // The energy ledger and the particle snapshots follow one continuous run.
-  const char* one_run = deck.output.energy                ? "output.energy"
-                        : deck.output.particles_every > 0 ? "output.particles"
-                                                          : nullptr;
-  if (x.settle.realisations == 0) x.settle.realisations = random_fill && !one_run ? 2 : 1;
-  if (x.settle.realisations > 1 && !random_fill)
-    throw InputError(deck.where("excitation.settle.realisations"), "excitation.settle.realisations",
-                     "expected 1: a lattice fill is the same for every seed, so realisations "
-                     "need particles with fill = \"random\"");
-  if (one_run && (x.settle.realisations > 1 || x.start == FrequencyStart::independent))
-    throw InputError(deck.where(one_run), one_run,
-                     "not with settle.realisations > 1 or start = \"independent\": it follows "
-                     "one continuous run");
+  settle_realisations(deck);
   if (const toml::node* sweep = root.get("sweep")) {
     if (!sweep->as_table()) top.wrong(*sweep, "sweep", table);
     deck.sweep = read_sweep(*sweep->as_table(), path);
@@ -1053,16 +1059,15 @@ Deck sweep_point(const Deck& deck, int point) {
 }
 
 Deck with_snapshots(Deck deck, double every) {
-  const std::string key = "excitation.settle.realisations";
-  ExcitationSpec& x = deck.excitation;
-  if (!deck.positions.count(key)) x.settle.realisations = 1;  // the default of one continuous run
-  if (x.settle.realisations > 1 || x.start == FrequencyStart::independent) {
-    const std::string at = x.start == FrequencyStart::independent ? "excitation.start" : key;
-    throw InputError(deck.where(at), at,
-                     "not with --snapshots: snapshots follow one continuous run (expected "
-                     "settle.realisations = 1 and a start other than \"independent\")");
-  }
   deck.output.particles_every = every;
+  // Resolved again with the snapshots on, as if the deck had asked for them.
+  if (!deck.positions.count("excitation.settle.realisations"))
+    deck.excitation.settle.realisations = 0;
+  try {
+    settle_realisations(deck);
+  } catch (const InputError& e) {
+    throw InputError(std::string(e.what()) + " (output.particles set by pdsim run --snapshots)");
+  }
   std::ostringstream note;
   note.precision(17);
   note << "\n# pdsim run --snapshots " << every << "\n";

@@ -67,6 +67,11 @@ void carry_with_container(DemEngine& engine, const ContainerKinematics& from,
   engine.restore(state);
 }
 
+const LinearStructure& structure_of(const Scene& scene) {
+  static const LinearStructure none;
+  return scene.structure ? *scene.structure : none;
+}
+
 }  // namespace
 
 CoupledSystem::CoupledSystem(const Scene& scene)
@@ -74,9 +79,9 @@ CoupledSystem::CoupledSystem(const Scene& scene)
       coupling_(scene.coupling),
       integrator_kind_(scene.structure_spec.integrator),
       direction_(scene.structure_spec.direction),
+      structure_(structure_of(scene)),
       every_(scene.coupling.every) {
   if (scene.structure) {
-    structure_ = *scene.structure;
     // At rest until configure() fixes the step; holds the state restore() brings back.
     integrator_ = make_integrator(structure_, integrator_kind_, 1e-4);
     integrator_->q = integrator_->v = Eigen::VectorXd::Zero(structure_.size());

@@ -133,7 +133,7 @@ class CoupledSystem {
   Vec3 direction_;
   Vec3 rotation_axis_;  // beam: axis x direction, about which a node's slope turns a damper
   std::optional<MotionSpec> prescribed_;
-  LinearStructure structure_;
+  const LinearStructure& structure_;  // the scene's (an empty one without a structure)
   std::unique_ptr<StructureIntegrator> integrator_;
   std::vector<std::unique_ptr<DemEngine>> engines_;
   Drive drive_;

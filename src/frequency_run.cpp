@@ -17,7 +17,7 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 FrequencyRun::FrequencyRun(const Scene& scene, Progress progress)
     : scene_(scene), system_(scene), progress_(std::move(progress)) {
-  const double f_top = scene.highest_frequency > 0 ? scene.highest_frequency : first_mode();
+  const double f_top = scene.highest_frequency() > 0 ? scene.highest_frequency() : first_mode();
   sample_every_ = scene.output.every > 0 ? scene.output.every : 1.0 / (32 * f_top);
   if (scene.output.energy) energy_.emplace();
   if (scene.output.particles_every > 0) {

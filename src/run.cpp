@@ -1031,10 +1031,10 @@ std::string check_report(const Deck& deck, const Scene& scene) {
     steps_per_second = 1.0 / scene.dt;
   }
   s << "backend: " << backend_name(scene.backend) << " (" << scene.backend_reason << ")\n";
-  if (scene.highest_frequency > 0) {
+  if (scene.highest_frequency() > 0) {
     s << "steps per period: "
-      << static_cast<long>(std::ceil(1.0 / (scene.highest_frequency * scene.dt))) << " at "
-      << scene.highest_frequency << " Hz\n";
+      << static_cast<long>(std::ceil(1.0 / (scene.highest_frequency() * scene.dt))) << " at "
+      << scene.highest_frequency() << " Hz\n";
   }
   const ExcitationSpec& x = deck.excitation;
   const SettleSpec& settle = x.settle;

@@ -357,9 +357,6 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   f = x.frequencies;
   if (x.kind == ExcitationKind::sine) f = {x.frequency};
   if (x.kind == ExcitationKind::prescribed && f.empty()) f = {x.motion.frequency};
-  if (!f.empty()) {
-    s.highest_frequency = *std::max_element(f.begin(), f.end());
-  }
   if (deck.structure.kind != StructureKind::none) {
     s.structure = build_structure(deck);
     try {
@@ -370,7 +367,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   }
   if (deck.dampers.empty()) {
     // Bare structure: the exact propagator has no step limit; sample 256 steps a period.
-    const double f_top = s.highest_frequency > 0 ? s.highest_frequency : 100.0;
+    const double f_top = s.highest_frequency() > 0 ? s.highest_frequency() : 100.0;
     s.dt = deck.solver.dt > 0 ? deck.solver.dt : 1.0 / (256 * f_top);
     s.dt_basis = deck.solver.dt > 0 ? "given in the deck" : "1/256 of the shortest period";
   }

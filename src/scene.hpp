@@ -5,6 +5,7 @@
 // runs take only the scene.
 #pragma once
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -32,7 +33,6 @@ struct Scene {
   double contact_time = 0;   // s, linear: exact binary contact time; hertz: estimate at 1 m/s
   double rayleigh_time = 0;  // s, hertz only
   std::string dt_basis;      // how dt was chosen
-  double highest_frequency = 0;
   int threads = 0;
 
   // What the run does, as the deck says, checked.
@@ -40,6 +40,9 @@ struct Scene {
   std::optional<LinearStructure> structure;  // built once, here (with a damper at each mount)
   std::vector<double> natural_hz;            // the structure's natural frequencies, ascending
   std::vector<double> frequencies;           // Hz, the excitation's, in the order they run
+  double highest_frequency() const {         // Hz, 0 when the excitation has none
+    return frequencies.empty() ? 0.0 : *std::max_element(frequencies.begin(), frequencies.end());
+  }
   ExcitationSpec excitation;
   CouplingSpec coupling;
   BedSpec bed;

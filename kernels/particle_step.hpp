@@ -52,22 +52,23 @@ struct ContactOutcome {
 // the points' relative velocity by dt F (1/m* + R_i^2/I_i + R_j^2/I_j) = dt F / (2/7 m*).
 constexpr double kTangentMassRatio = 2.0 / 7.0;
 
-// The contact's loads, its dissipation into `dissipated`. `mass_eff` is m*, `inv_inertia` and
+// The contact's loads, its dissipation into `dissipated`. `mass_eff` is m* (and `inv_mass_eff`
+// 1/m*, so that no contact divides by it), `inv_inertia` and
 // `partner_inv_inertia` 1/I_i and 1/I_j (0 for a wall): what the contact's own loads act on in
 // a step, so that the dissipative elements count their work at the mid-step velocities and
 // never reverse a slip or a spin within the step (contact_tangential.hpp).
 template <class V>
 PDSIM_HD ContactOutcome contact(double overlap, Vec3 normal, Vec3 vrel, Vec3 omega_rel,
                                 double radius, double partner_radius, double radius_eff,
-                                double mass_eff, double inv_inertia, double partner_inv_inertia,
-                                bool wall, Vec3* history, double dt, const ContactParams& p,
-                                Dissipation& dissipated) {
+                                double mass_eff, double inv_mass_eff, double inv_inertia,
+                                double partner_inv_inertia, bool wall, Vec3* history, double dt,
+                                const ContactParams& p, Dissipation& dissipated) {
   const NormalResponse r = V::Normal::respond(overlap, radius_eff, mass_eff, wall, p);
   const double vn = dot(vrel, normal);
   const Vec3 vt = vrel - vn * normal;
   const double fn = r.elastic - r.damping * vn;
   // The dashpot's work at the mid-step normal speed (tangential forces and torques leave it).
-  dissipated.normal += r.damping * vn * (vn + 0.5 * dt * fn / mass_eff) * dt;
+  dissipated.normal += r.damping * vn * (vn + 0.5 * dt * fn * inv_mass_eff) * dt;
   // The springs' energy in the leapfrog form that the step conserves for a linear spring,
   // 1/2 k x_prev . x with x_prev = x - dt v (contact_tangential.hpp): it goes with the kinetic
   // energy of the input velocities. Exact for a linear normal spring, O(dt^2) otherwise.
@@ -153,14 +154,16 @@ PDSIM_HD ContactOutcome pair_contact(int i, int s, Vec3& xi, const ParticleStepA
   const Body b = body<V>(i, a);
   const int j = a.neighbours[s];
   const Vec3 d{a.in.x[i] - a.in.x[j], a.in.y[i] - a.in.y[j], a.in.z[i] - a.in.z[j]};
-  double radius_j, mass_eff, inv_inertia_j;
+  double radius_j, mass_eff, inv_mass_eff, inv_inertia_j;
   if constexpr (V::kPolydisperse) {
     radius_j = a.radius[j];
-    mass_eff = 1.0 / (b.inv_mass + a.inv_mass[j]);
+    inv_mass_eff = b.inv_mass + a.inv_mass[j];
+    mass_eff = 1.0 / inv_mass_eff;
     inv_inertia_j = V::kRolling ? a.inv_inertia[j] : 0.0;
   } else {
     radius_j = b.radius;
     mass_eff = 0.5 * b.mass;
+    inv_mass_eff = 2.0 * b.inv_mass;
     inv_inertia_j = b.inv_inertia;
   }
   const double reach = b.radius + radius_j;
@@ -174,8 +177,8 @@ PDSIM_HD ContactOutcome pair_contact(int i, int s, Vec3& xi, const ParticleStepA
   // The slot test and this distance may round differently (FMA contraction): an overlap
   // of a few ulp below zero is zero, not a NaN in the Hertz root.
   return contact<V>(max_of(reach - dist, 0.0), normal, vrel, w - wj, b.radius, radius_j,
-                    b.radius * radius_j / reach, mass_eff, b.inv_inertia, inv_inertia_j, false, &xi,
-                    a.dt, a.contact, dissipated);
+                    b.radius * radius_j / reach, mass_eff, inv_mass_eff, b.inv_inertia,
+                    inv_inertia_j, false, &xi, a.dt, a.contact, dissipated);
 }
 
 // A pair's loads in its forward slot s, for the partner to gather (slot_loads() reads them).
@@ -321,8 +324,9 @@ PDSIM_HD Load wall_contact(int i, double gap, Vec3 normal, Vec3& xi, const Parti
     w_wall_rel -= a.container.angular_velocity;
   }
   const Vec3 vrel = v_wall_rel - cross(b.radius * w, normal);
-  const auto out = contact<V>(b.radius - gap, normal, vrel, w_wall_rel, b.radius, 0.0, b.radius,
-                              b.mass, b.inv_inertia, 0.0, true, &xi, a.dt, a.contact, dissipated);
+  const auto out =
+      contact<V>(b.radius - gap, normal, vrel, w_wall_rel, b.radius, 0.0, b.radius, b.mass,
+                 b.inv_mass, b.inv_inertia, 0.0, true, &xi, a.dt, a.contact, dissipated);
   return {out.force, out.torque};
 }
 

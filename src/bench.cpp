@@ -5,10 +5,12 @@
 #include <chrono>
 #include <cstdio>
 #include <exception>
+#include <numeric>
 #include <thread>
 #include <vector>
 
 #include "io/deck.hpp"
+#include "kernels/contact_count.hpp"
 #include "src/coupled_system.hpp"
 #include "src/scene.hpp"
 
@@ -47,14 +49,17 @@ struct Shake {
 constexpr Shake kBoxShake{0.004, 20.0};   // the shaken box, fluidised
 constexpr Shake kPileShake{0.001, 15.0};  // the Saeki-size pile, which barely moves
 
+// The shaken container at step n.
+ContainerKinematics shaken(Shake s, long n, double dt) {
+  const double omega = 2 * kPi * s.frequency, t = static_cast<double>(n) * dt;
+  return translating({s.amplitude * std::sin(omega * t), 0, 0},
+                     {s.amplitude * omega * std::cos(omega * t), 0, 0});
+}
+
 // Steps of the shaken container from step `first` on (its phase follows the step count).
 void shake(DemEngine& engine, double dt, long first, long steps, Shake s = kBoxShake) {
-  const double omega = 2 * kPi * s.frequency;
   for (long n = first; n < first + steps; ++n) {
-    const double t = static_cast<double>(n) * dt;
-    const ContainerKinematics k = translating({s.amplitude * std::sin(omega * t), 0, 0},
-                                              {s.amplitude * omega * std::cos(omega * t), 0, 0});
-    const StepTotals& totals = engine.compute(k, dt);
+    const StepTotals& totals = engine.compute(shaken(s, n, dt), dt);
     if (totals.flags) throw SimulationError("bench scene blew up");
     engine.accept();
   }
@@ -169,8 +174,8 @@ void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOpti
       "\n# %s; shaken %g mm at %g Hz along x, dt = %g s: %g s of warm-up from a "
       "random fill (untimed), then %g periods (%ld steps) timed\n",
       title, 1e3 * s.amplitude, s.frequency, config.dt, o.warmup, o.periods, steps);
-  std::printf("%-10s %-8s %-9s %-10s %-14s %-16s %-34s %s\n", "particles", "threads", "steps",
-              "wall_s", "psteps_per_s", "bytes/particle", "variant", "state_sum");
+  std::printf("%-10s %-8s %-9s %-10s %-14s %-16s %-9s %-34s %s\n", "particles", "threads", "steps",
+              "wall_s", "psteps_per_s", "bytes/particle", "contacts", "variant", "state_sum");
   config.threads = *std::max_element(o.threads.begin(), o.threads.end());
   const Warmed warmed = warm_up(config, s, o.warmup);
   for (int t : o.threads) {
@@ -178,9 +183,17 @@ void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOpti
     std::unique_ptr<DemEngine> engine;
     const double wall = time_warmed(config, warmed, steps, s, engine);
     const double ps = static_cast<double>(steps) * engine->count();
-    std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %-34s %.17g\n", engine->count(), t, steps,
-                wall, ps / wall, engine->bytes_per_particle(), engine->variant().c_str(),
-                state_sum(*engine));
+    // Contacts per particle at the end (partners and walls): the coordination of the flow.
+    std::vector<Vec3> centre;
+    for (const ParticleState& p : engine->particles()) centre.push_back(p.position);
+    const std::vector<std::int32_t> contacts =
+        contact_counts(centre, config.radius, config.shape, config.geometry,
+                       shaken(s, warmed.step + steps, config.dt));
+    const double per_particle =
+        std::accumulate(contacts.begin(), contacts.end(), 0.0) / static_cast<double>(centre.size());
+    std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %-9.2f %-34s %.17g\n", engine->count(), t,
+                steps, wall, ps / wall, engine->bytes_per_particle(), per_particle,
+                engine->variant().c_str(), state_sum(*engine));
     std::fflush(stdout);
   }
 }
@@ -200,6 +213,8 @@ void add_bench_options(CLI::App& app, BenchOptions& o) {
       ->check(CLI::Range(0.0, 100.0));
   app.add_option("--periods", o.periods, "whole periods timed (default 1)")
       ->check(CLI::Range(0.01, 1000.0));
+  app.add_flag("--box,!--no-box", o.box,
+               "the shaken box at each --particles count (default on; --no-box: the pile only)");
   app.add_flag("--pile,!--no-pile", o.pile,
                "also the dense Saeki-size pile (default on; not with --steps)");
   app.add_option("--jobs", o.jobs,
@@ -299,15 +314,25 @@ int run_bench(const BenchOptions& o) {
     bench_coupling();
     return 0;
   }
-  if (o.steps == 0) {
+  // The scenes timed over whole periods (and by --jobs): the boxes, then the pile.
+  struct Flow {
+    std::string title;
+    EngineConfig config;
+    Shake shake;
+  };
+  std::vector<Flow> flows;
+  if (o.box)
     for (int n : o.particles)
-      bench_flow("shaken steel-sphere box: d = 5 mm, E = 2e11 Pa, hertz/history, gravity",
-                 bench_config(n, 1, backend, Fill::random), kBoxShake, o);
-    if (o.pile)
-      bench_flow(
-          "dense pile (the Saeki damper): 250 spheres d = 5 mm in a 50 mm cube, E = 2e9 "
-          "Pa, hertz/history, gravity",
-          pile_config(1, backend), kPileShake, o);
+      flows.push_back({"shaken steel-sphere box: d = 5 mm, E = 2e11 Pa, hertz/history, gravity",
+                       bench_config(n, 1, backend, o.steps > 0 ? Fill::lattice : Fill::random),
+                       kBoxShake});
+  if (o.pile && o.steps == 0)
+    flows.push_back(
+        {"dense pile (the Saeki damper): 250 spheres d = 5 mm in a 50 mm cube, E = "
+         "2e9 Pa, hertz/history, gravity",
+         pile_config(1, backend), kPileShake});
+  if (o.steps == 0) {
+    for (const Flow& f : flows) bench_flow(f.title.c_str(), f.config, f.shake, o);
   } else {
     std::printf(
         "# shaken steel-sphere box: d = 5 mm, hertz/history, gravity, dt = 1e-6 s, "
@@ -330,18 +355,18 @@ int run_bench(const BenchOptions& o) {
   if (o.jobs > 0) {
     // Independent scenes side by side (sweep points): the throughput of the whole machine.
     std::printf(
-        "\n# %d copies of each box at once, one thread each (as `pdsim sweep` runs points), %s; "
+        "\n# %d copies of each scene at once, one thread each (as `pdsim sweep` runs points), %s; "
         "psteps_per_s counts all copies\n",
         o.jobs,
         o.steps > 0 ? "from the lattice, set-up included"
                     : "whole periods from one warmed state, set-up excluded");
     std::printf("%-10s %-8s %-9s %-10s %-14s\n", "particles", "jobs", "steps", "wall_s",
                 "psteps_per_s");
-    for (int n : o.particles) {
-      const EngineConfig c =
-          bench_config(n, 1, backend, o.steps > 0 ? Fill::lattice : Fill::random);
-      const long steps = o.steps > 0 ? o.steps : period_steps(o.periods, kBoxShake, c.dt);
-      const Warmed warmed = o.steps > 0 ? Warmed{} : warm_up(c, kBoxShake, o.warmup);
+    for (const Flow& f : flows) {
+      const EngineConfig& c = f.config;
+      const int n = static_cast<int>(c.particles.size());
+      const long steps = o.steps > 0 ? o.steps : period_steps(o.periods, f.shake, c.dt);
+      const Warmed warmed = o.steps > 0 ? Warmed{} : warm_up(c, f.shake, o.warmup);
       std::vector<double> walls(static_cast<std::size_t>(o.jobs));
       std::vector<std::thread> copies;
       std::vector<std::exception_ptr> errors(walls.size());
@@ -351,7 +376,7 @@ int run_bench(const BenchOptions& o) {
             long long ps = 0;
             std::unique_ptr<DemEngine> engine;
             walls[k] = o.steps > 0 ? time_engine(c, steps, &ps)
-                                   : time_warmed(c, warmed, steps, kBoxShake, engine);
+                                   : time_warmed(c, warmed, steps, f.shake, engine);
           } catch (...) {
             errors[k] = std::current_exception();
           }

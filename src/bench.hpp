@@ -18,6 +18,7 @@ struct BenchOptions {
   long steps = 0;         // > 0: that many steps from the lattice, set-up included (no warm-up)
   double warmup = 0.2;    // s of shaking before the timing (the fall from the fill)
   double periods = 1;     // whole periods timed
+  bool box = true;        // the shaken box at each particle count
   bool pile = true;       // also the dense pile
   int jobs = 0;           // > 0: also that many copies of each scene at once, one thread each
   bool effects = false;   // also time each optional effect against the full model

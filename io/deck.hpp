@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "io/specs.hpp"
+#include "kernels/errors.hpp"
 
 namespace pdsim {
 

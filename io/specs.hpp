@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "kernels/dem_types.hpp"
-#include "src/common.hpp"
+#include "kernels/vec3.hpp"
 #include "structure/structure_spec.hpp"
 
 namespace pdsim {

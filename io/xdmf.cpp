@@ -5,7 +5,7 @@
 #include <sstream>
 #include <vector>
 
-#include "src/common.hpp"
+#include "kernels/vec3.hpp"
 
 namespace pdsim {
 

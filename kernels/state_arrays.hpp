@@ -7,7 +7,7 @@
 #include <variant>
 #include <vector>
 
-#include "src/common.hpp"
+#include "kernels/errors.hpp"
 
 namespace pdsim {
 

@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <limits>
 
-#include "src/common.hpp"
+#include "kernels/vec3.hpp"
 
 namespace pdsim {
 namespace {

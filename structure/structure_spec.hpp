@@ -8,7 +8,8 @@
 #include <optional>
 #include <string>
 
-#include "src/common.hpp"
+#include "kernels/errors.hpp"
+#include "kernels/vec3.hpp"
 
 namespace pdsim {
 

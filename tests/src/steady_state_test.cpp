@@ -8,7 +8,7 @@
 #include <limits>
 #include <random>
 
-#include "src/common.hpp"
+#include "kernels/vec3.hpp"
 #include "src/steady_state.hpp"
 
 using namespace pdsim;

@@ -1,10 +1,8 @@
-// Types shared by every layer: small vectors usable on host and device, and the
-// error type that carries a deck position up to the CLI.
+// The bottom of every layer, usable on host and device: small vectors, pi, and the macros that
+// mark functions for both (host-only types are in kernels/errors.hpp).
 #pragma once
 
 #include <cmath>
-#include <stdexcept>
-#include <string>
 
 #if defined(__CUDACC__)
 #define PDSIM_HD __host__ __device__ __forceinline__
@@ -66,41 +64,5 @@ PDSIM_HD Vec3 cross(Vec3 a, Vec3 b) {
 PDSIM_HD double norm(Vec3 a) {
   return sqrt(dot(a, a));
 }
-
-// Position of a key in a deck, for error messages ("file:line:column").
-struct SourcePos {
-  std::string file;
-  int line = 0;
-  int column = 0;
-};
-
-// A user error (bad deck, bad option, existing output): the CLI prints it and exits 1.
-class InputError : public std::runtime_error {
- public:
-  InputError(const SourcePos& where, const std::string& key, const std::string& what)
-      : std::runtime_error(format(where, key, what)) {}
-  explicit InputError(const std::string& what) : std::runtime_error(what) {}
-
- private:
-  static std::string format(const SourcePos& p, const std::string& key, const std::string& what) {
-    std::string s = p.file;
-    if (p.line > 0) s += ":" + std::to_string(p.line) + ":" + std::to_string(p.column);
-    s += ": ";
-    if (!key.empty()) s += "'" + key + "': ";
-    return s + what;
-  }
-};
-
-// A failure of the simulation itself (blow-up, solver failure): reported with step and time.
-class SimulationError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-// A run stopped from outside (SIGINT, or a sibling run that failed): not a failure of its own.
-class Interrupted : public SimulationError {
- public:
-  explicit Interrupted(const std::string& what = "interrupted") : SimulationError(what) {}
-};
 
 }  // namespace pdsim

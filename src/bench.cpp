@@ -12,6 +12,7 @@
 #include "io/deck.hpp"
 #include "kernels/contact_count.hpp"
 #include "src/coupled_system.hpp"
+#include "src/frequency_run.hpp"
 #include "src/scene.hpp"
 
 namespace pdsim {
@@ -166,6 +167,18 @@ double time_warmed(const EngineConfig& config, const Warmed& w, long steps, Shak
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// Contacts per particle of an engine's state (partners and walls), with its container at
+// `container`: the coordination of the flow.
+double contacts_per_particle(const DemEngine& engine, const EngineConfig& config,
+                             const ContainerKinematics& container) {
+  std::vector<Vec3> centre;
+  for (const ParticleState& p : engine.particles()) centre.push_back(p.position);
+  const std::vector<std::int32_t> contacts =
+      contact_counts(centre, config.radius, config.shape, config.geometry, container);
+  return std::accumulate(contacts.begin(), contacts.end(), 0.0) /
+         static_cast<double>(centre.size());
+}
+
 // One scene the user runs: warmed up once, then timed over whole periods from the same state at
 // each thread count.
 void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOptions& o) {
@@ -183,14 +196,8 @@ void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOpti
     std::unique_ptr<DemEngine> engine;
     const double wall = time_warmed(config, warmed, steps, s, engine);
     const double ps = static_cast<double>(steps) * engine->count();
-    // Contacts per particle at the end (partners and walls): the coordination of the flow.
-    std::vector<Vec3> centre;
-    for (const ParticleState& p : engine->particles()) centre.push_back(p.position);
-    const std::vector<std::int32_t> contacts =
-        contact_counts(centre, config.radius, config.shape, config.geometry,
-                       shaken(s, warmed.step + steps, config.dt));
     const double per_particle =
-        std::accumulate(contacts.begin(), contacts.end(), 0.0) / static_cast<double>(centre.size());
+        contacts_per_particle(*engine, config, shaken(s, warmed.step + steps, config.dt));
     std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %-9.2f %-34s %.17g\n", engine->count(), t,
                 steps, wall, ps / wall, engine->bytes_per_particle(), per_particle,
                 engine->variant().c_str(), state_sum(*engine));
@@ -306,6 +313,90 @@ void bench_coupling() {
               1e6 * wall / static_cast<double>(steps));
 }
 
+// The damper of examples/saeki_250.toml on its structure, as the user runs it.
+constexpr const char* kSaekiDeck = R"(
+[structure]
+kind = "sdof"
+mass = 2.37
+stiffness = 21500.0
+damping_ratio = 0.0022
+direction = [1.0, 0.0, 0.0]
+[[damper]]
+container = { shape = "box", size = [0.05, 0.05, 0.05] }
+particles = { count = 250, diameter = 0.005, density = 7800.0, seed = 1, fill = "random" }
+[contact]
+model = "hertz"
+tangential = "history"
+young = 2.0e9
+restitution = 0.6
+friction = 0.3
+[gravity]
+vector = [0.0, 0.0, -9.81]
+[excitation]
+kind = "sine"
+input = "force"
+amplitude = 1.0
+frequency = 13.0
+duration = 1.0
+[coupling]
+scheme = "interleaved"
+)";
+
+// The coupled run's own cost: the Saeki damper on its structure, driven at 13 Hz (below
+// resonance: the bed stays a dense pile), then the same bed's DEM alone from the same state,
+// its container moved as the coupled run moved it. One thread each.
+void bench_saeki(const BenchOptions& o, Backend backend) {
+  const Deck deck = parse_deck(kSaekiDeck, "bench");
+  const Scene scene = build_scene(deck, 1, backend);
+  const double dt = scene.dt, frequency = deck.excitation.frequency;
+  FrequencyRun run(scene);  // the bed settles in the resting container first, as a run's does
+  const BedReport settled = run.settle_bed();
+  CoupledSystem& system = run.system();
+  system.configure(dt,
+                   Drive{ExcitationInput::force, deck.excitation.amplitude, 2 * kPi * frequency});
+  const int every = system.steps_per_advance();
+  const long warm = std::lround(o.warmup / dt);
+  const long steps = std::max(1L, std::lround(o.periods / (frequency * dt)) / every) * every;
+  std::printf(
+      "\n# the Saeki damper (examples/saeki_250.toml) on its SDOF, 1 N at %g Hz, dt = %.4g s, one "
+      "thread: bed settled (%.2f s), %g s of warm-up, then %g periods (%ld steps) timed, coupled "
+      "and then the DEM alone from the same state\n",
+      frequency, dt, settled.time_s, o.warmup, o.periods, steps);
+  std::printf("%-10s %-10s %-9s %-10s %-14s %-9s\n", "run", "particles", "steps", "wall_s",
+              "psteps_per_s", "contacts");
+  for (long k = 0; k < warm; k += every) system.advance();
+  const StateArrays bed = system.engines().front()->save();
+  const EngineConfig& config = scene.dampers.front().engine;
+  const int n = system.particle_count();
+  auto report = [&](const char* what, std::chrono::steady_clock::time_point start,
+                    const DemEngine& engine, const ContainerKinematics& container) {
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf("%-10s %-10d %-9ld %-10.3f %-14.4g %-9.2f\n", what, n, steps, wall,
+                static_cast<double>(steps) * n / wall,
+                contacts_per_particle(engine, config, container));
+    std::fflush(stdout);
+  };
+  std::vector<ContainerKinematics> motion;  // the container at the start of each exchange
+  auto start = std::chrono::steady_clock::now();
+  for (long k = 0; k < steps; k += every) {
+    motion.push_back(system.container_now(0));
+    system.advance();
+  }
+  report("coupled", start, *system.engines().front(), system.container_now(0));
+  EngineConfig alone = config;
+  alone.dt = dt;
+  const auto engine = make_engine(alone);
+  engine->restore(bed);
+  start = std::chrono::steady_clock::now();
+  for (long k = 0; k < steps; ++k) {
+    if (engine->compute(motion[static_cast<std::size_t>(k / every)], dt).flags)
+      throw SimulationError("bench scene blew up");
+    engine->accept();
+  }
+  report("DEM alone", start, *engine, motion.back());
+}
+
 }  // namespace
 
 int run_bench(const BenchOptions& o) {
@@ -333,6 +424,7 @@ int run_bench(const BenchOptions& o) {
          pile_config(1, backend), kPileShake});
   if (o.steps == 0) {
     for (const Flow& f : flows) bench_flow(f.title.c_str(), f.config, f.shake, o);
+    if (o.saeki) bench_saeki(o, backend);
   } else {
     std::printf(
         "# shaken steel-sphere box: d = 5 mm, hertz/history, gravity, dt = 1e-6 s, "

@@ -20,6 +20,7 @@ struct BenchOptions {
   double periods = 1;     // whole periods timed
   bool box = true;        // the shaken box at each particle count
   bool pile = true;       // also the dense pile
+  bool saeki = true;      // also the Saeki damper on its structure against its DEM alone
   int jobs = 0;           // > 0: also that many copies of each scene at once, one thread each
   bool effects = false;   // also time each optional effect against the full model
   bool coupling = false;  // time one structure <-> particle exchange per scheme and integrator

@@ -223,6 +223,9 @@ void add_bench_options(CLI::App& app, BenchOptions& o) {
       ->check(CLI::Range(0.01, 1000.0));
   app.add_flag("--box,!--no-box", o.box,
                "the shaken box at each --particles count (default on; --no-box: the pile only)");
+  app.add_flag("--saeki,!--no-saeki", o.saeki,
+               "also the Saeki example coupled to its structure at 13 Hz, against the same bed's "
+               "DEM alone (default on; not with --steps)");
   app.add_flag("--pile,!--no-pile", o.pile,
                "also the dense Saeki-size pile (default on; not with --steps)");
   app.add_option("--jobs", o.jobs,

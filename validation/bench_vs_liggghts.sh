@@ -24,9 +24,9 @@ printf "%-6s %-9s %-6s %-32s %-32s\n" scene particles cores "pdsim median [min, 
   "LIGGGHTS median [min, max]"
 for scene in ${SCENES:-a b p}; do
   case $scene in
-    a) particles=196 dt=1e-6 frequency=20 flags=(--particles 196 --no-pile) ;;
-    b) particles=8000 dt=1e-6 frequency=20 flags=(--particles 8000 --no-pile) ;;
-    p) particles=250 dt=4e-6 frequency=15 flags=(--no-box) ;;
+    a) particles=196 dt=1e-6 frequency=20 flags=(--particles 196 --no-pile --no-saeki) ;;
+    b) particles=8000 dt=1e-6 frequency=20 flags=(--particles 8000 --no-pile --no-saeki) ;;
+    p) particles=250 dt=4e-6 frequency=15 flags=(--no-box --no-saeki) ;;
     *) echo "unknown scene '$scene' (a, b or p)" >&2; exit 2 ;;
   esac
   warm_steps=$(awk -v w="$warmup" -v dt="$dt" 'BEGIN {printf "%d", w / dt + 0.5}')

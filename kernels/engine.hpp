@@ -160,6 +160,126 @@ inline std::string neighbour_overflow_message(int max_neighbours) {
 // The checkpoint's names of the particle state's nine columns, in ParticleArrays' order.
 inline const char* const kStateNames[9] = {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"};
 
+// Every array of a DEM engine's checkpoint, as either backend writes it and both read it (lists
+// in the fixed-stride layout): its element type and its length, in values per particle, per list
+// slot (particles x max_neighbours) or in all. restore() checks a checkpoint against this table
+// before reading it (check_checkpoint), so that a damaged or foreign one is refused by name
+// instead of being read past an array's end; the round-trip tests check that save() writes
+// exactly these.
+enum class CheckpointType { f64, i32, u64, u8 };  // StateArray's alternatives, in order
+enum class CheckpointExtent { particle, slot, total };
+struct CheckpointField {
+  const char* name;
+  CheckpointType type;
+  CheckpointExtent extent;
+  int values;    // per particle or slot, or in all
+  bool history;  // empty in scenes without tangential history
+};
+inline constexpr CheckpointField kCheckpointFields[] = {
+    {"x", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"y", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"z", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"vx", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"vy", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"vz", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"wx", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"wy", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"wz", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"id", CheckpointType::i32, CheckpointExtent::particle, 1, false},
+    {"radius", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {"history", CheckpointType::f64, CheckpointExtent::slot, 3, true},
+    {"wall_history", CheckpointType::f64, CheckpointExtent::particle, 3 * kWallSlots, true},
+    {"wall_mask", CheckpointType::u8, CheckpointExtent::particle, 1, false},
+    {"neighbour_mask", CheckpointType::u64, CheckpointExtent::particle, 1, false},
+    {"neighbours", CheckpointType::i32, CheckpointExtent::slot, 1, false},
+    {"partner_id", CheckpointType::i32, CheckpointExtent::slot, 1, false},
+    {"neighbour_count", CheckpointType::i32, CheckpointExtent::particle, 1, false},
+    {"reverse", CheckpointType::i32, CheckpointExtent::slot, 1, false},
+    {"reverse_count", CheckpointType::i32, CheckpointExtent::particle, 1, false},
+    {"grid.origin", CheckpointType::f64, CheckpointExtent::total, 3, false},
+    {"grid.cell_size", CheckpointType::f64, CheckpointExtent::total, 1, false},
+    {"grid.cells", CheckpointType::i32, CheckpointExtent::total, 3, false},
+    {"needs_rebuild", CheckpointType::i32, CheckpointExtent::total, 1, false},
+    {"max_neighbours", CheckpointType::i32, CheckpointExtent::total, 1, false},
+    {"travel", CheckpointType::f64, CheckpointExtent::total, 1, false},
+};
+
+// Refuses (SimulationError, naming the array) a checkpoint that is not one of `count` particles
+// for an engine with (`history`) or without tangential history: an array missing, unknown, of
+// another type or length, or a particle or list index out of range. Returns its grid.
+inline GridState check_checkpoint(const StateArrays& in, int count, bool history) {
+  const GridState g = get_grid(in);
+  check_particle_count(count, g.max_neighbours);
+  const auto n = static_cast<std::size_t>(count);
+  const std::size_t slots = n * static_cast<std::size_t>(g.max_neighbours);
+  static constexpr const char* kTypeNames[] = {"double", "int32", "uint64", "uint8"};
+  for (const CheckpointField& f : kCheckpointFields) {
+    const auto it = in.find(f.name);
+    if (it == in.end())
+      throw SimulationError(std::string("the checkpoint lacks the array '") + f.name + "'");
+    const auto type = static_cast<std::size_t>(f.type);
+    if (it->second.index() != type)
+      throw SimulationError(std::string("the checkpoint's array '") + f.name + "' holds " +
+                            kTypeNames[it->second.index()] + " values, not " + kTypeNames[type]);
+    const std::size_t per = f.extent == CheckpointExtent::particle ? n
+                            : f.extent == CheckpointExtent::slot   ? slots
+                                                                   : 1;
+    const std::size_t expected =
+        f.history && !history ? 0 : per * static_cast<std::size_t>(f.values);
+    const std::size_t size = std::visit([](const auto& v) { return v.size(); }, it->second);
+    if (size != expected)
+      throw SimulationError(
+          std::string("the checkpoint's array '") + f.name + "' holds " + std::to_string(size) +
+          " values; a checkpoint of " + std::to_string(count) + " particles with " +
+          std::to_string(g.max_neighbours) + " list slots each" +
+          (history ? ", with tangential history," : ", without tangential history,") + " holds " +
+          std::to_string(expected));
+  }
+  for (const auto& array : in) {
+    const std::string& name = array.first;
+    if (std::none_of(std::begin(kCheckpointFields), std::end(kCheckpointFields),
+                     [&](const CheckpointField& f) { return name == f.name; }))
+      throw SimulationError("the checkpoint holds an array '" + name +
+                            "' that a DEM engine does not write");
+  }
+  // Indices: each read below indexes an array by them.
+  auto refuse = [](const char* name, const std::string& what) {
+    throw SimulationError(std::string("the checkpoint's array '") + name + "' " + what);
+  };
+  std::vector<char> seen(n, 0);
+  for (const std::int32_t id : state_values<std::int32_t>(in, "id")) {
+    if (id < 0 || id >= count || seen[static_cast<std::size_t>(id)])
+      refuse("id", "is not a permutation of the particles");
+    seen[static_cast<std::size_t>(id)] = 1;
+  }
+  const auto& neighbour_count = state_values<std::int32_t>(in, "neighbour_count");
+  const auto& reverse_count = state_values<std::int32_t>(in, "reverse_count");
+  const auto& neighbours = state_values<std::int32_t>(in, "neighbours");
+  const auto& partner = state_values<std::int32_t>(in, "partner_id");
+  const auto& reverse = state_values<std::int32_t>(in, "reverse");
+  const long long slot_count = static_cast<long long>(slots);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int listed = neighbour_count[i], listing = reverse_count[i];
+    if (listed < 0 || padded(listed) > g.max_neighbours)
+      refuse("neighbour_count", "holds " + std::to_string(listed) + " partners for a list of " +
+                                    std::to_string(g.max_neighbours) + " slots");
+    if (listing < 0 || listing > g.max_neighbours)
+      refuse("reverse_count", "holds " + std::to_string(listing) + " entries for a list of " +
+                                  std::to_string(g.max_neighbours) + " slots");
+    const std::size_t base = i * static_cast<std::size_t>(g.max_neighbours);
+    for (int k = 0; k < padded(listed); ++k)
+      if (neighbours[base + k] < 0 || neighbours[base + k] >= count)
+        refuse("neighbours", "names a particle out of range");
+    for (int k = 0; k < listed; ++k)
+      if (partner[base + k] < 0 || partner[base + k] >= count)
+        refuse("partner_id", "names a particle out of range");
+    for (int k = 0; k < listing; ++k)
+      if (reverse[base + k] < 0 || reverse[base + k] >= slot_count)
+        refuse("reverse", "names a list slot out of range");
+  }
+  return g;
+}
+
 class DemEngine {
  public:
   virtual ~DemEngine() = default;

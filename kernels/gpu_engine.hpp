@@ -254,7 +254,7 @@ class GpuEngine final : public DemEngine {
   }
 
   void restore(const StateArrays& in) override {
-    const GridState g = get_grid(in);
+    const GridState g = check_checkpoint(in, count_, variant_.history);
     max_neighbours_ = g.max_neighbours;
     size_neighbour_arrays();
     State& s = state_[current_];
@@ -262,8 +262,6 @@ class GpuEngine final : public DemEngine {
       s.all[k]->upload(state_values<double>(in, kStateNames[k]), exec_, kStateNames[k]);
     id_.upload(state_values<std::int32_t>(in, "id"), exec_, "id");
     radius_host_ = state_values<double>(in, "radius");
-    if (radius_host_.size() != static_cast<std::size_t>(count_))
-      throw SimulationError("checkpoint DEM array 'radius' does not match the particle count");
     upload_particle_constants();
     clear_history();
     History& h = history_[current_];

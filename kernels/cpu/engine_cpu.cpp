@@ -260,7 +260,7 @@ class CpuEngine final : public DemEngine {
   }
 
   void restore(const StateArrays& in) override {
-    const GridState g = get_grid(in);
+    const GridState g = check_checkpoint(in, count_, step_.variant.history);
     max_neighbours_ = g.max_neighbours;
     set_particles(config_.particles);  // sizes every array for max_neighbours_
     StateBuffer& s = state_[current_];

@@ -304,6 +304,63 @@ TEST_CASE("a gpu engine's step computed twice before accept gives the same total
   }
 }
 
+TEST_CASE(
+    "both backends refuse a damaged checkpoint by name and write exactly the table's arrays") {
+  std::vector<GpuEngine> engines = gpu_engines();
+  engines.insert(engines.begin(), {"cpu", &make_engine});
+  for (const GpuEngine& e : engines) {
+    CAPTURE(e.name);
+    for (const SceneSpec& spec : {kScenes[0], kScenes[3]}) {  // with and without history
+      const EngineConfig config = make_scene(spec, Backend::cpu);
+      auto engine = e.make(config);
+      advance(*engine, 0, 300);
+      const StateArrays good = engine->save();
+      // save() writes the table's arrays and no others, so the check below covers the file.
+      CHECK(good.size() == std::size(kCheckpointFields));
+      REQUIRE_NOTHROW(e.make(config)->restore(good));
+      auto refused = [&](StateArrays damaged, const std::string& message) {
+        auto fresh = e.make(config);
+        CHECK_THROWS_WITH_AS(fresh->restore(damaged), doctest::Contains(message.c_str()),
+                             SimulationError);
+      };
+      StateArrays a = good;
+      std::get<std::vector<double>>(a["vx"]).pop_back();
+      refused(a, "'vx' holds");
+      a = good;
+      a.erase("neighbours");
+      refused(a, "lacks the array 'neighbours'");
+      a = good;
+      a["id"] = std::vector<double>(static_cast<std::size_t>(engine->count()), 0.0);
+      refused(a, "'id' holds double values, not int32");
+      a = good;
+      a["spare"] = std::vector<double>{1.0};
+      refused(a, "an array 'spare'");
+      a = good;
+      std::get<std::vector<std::int32_t>>(a["id"])[1] = 0;
+      refused(a, "'id' is not a permutation");
+      a = good;
+      std::get<std::vector<std::int32_t>>(a["neighbour_count"])[0] = 1000;
+      refused(a, "'neighbour_count' holds 1000 partners");
+      a = good;
+      auto& counts = std::get<std::vector<std::int32_t>>(a["neighbour_count"]);
+      const auto listed = std::find_if(counts.begin(), counts.end(), [](int c) { return c > 0; });
+      REQUIRE(listed != counts.end());
+      const int max_neighbours = state_value<std::int32_t>(good, "max_neighbours");
+      std::get<std::vector<std::int32_t>>(
+          a["neighbours"])[static_cast<std::size_t>(listed - counts.begin()) * max_neighbours] =
+          engine->count();
+      refused(a, "'neighbours' names a particle out of range");
+      // A checkpoint of the other kind of scene (history against none) is not this engine's.
+      const SceneSpec other = spec.tangential == TangentialModel::history ? kScenes[3] : kScenes[0];
+      auto foreign = e.make(make_scene(other, Backend::cpu));
+      advance(*foreign, 0, 10);
+      StateArrays mixed = foreign->save();
+      REQUIRE(foreign->count() == engine->count());
+      refused(mixed, "'history' holds");
+    }
+  }
+}
+
 TEST_CASE("checkpoints move between the cpu and gpu engines mid-run") {
   for (const GpuEngine& gpu : gpu_engines()) {
     CAPTURE(gpu.name);

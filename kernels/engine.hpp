@@ -158,7 +158,7 @@ inline std::string neighbour_overflow_message(int max_neighbours) {
 }
 
 // The checkpoint's names of the particle state's nine columns, in ParticleArrays' order.
-inline const char* const kStateNames[9] = {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"};
+inline constexpr const char* kStateNames[9] = {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"};
 
 // Every array of a DEM engine's checkpoint, as either backend writes it and both read it (lists
 // in the fixed-stride layout): its element type and its length, in values per particle, per list
@@ -176,15 +176,15 @@ struct CheckpointField {
   bool history;  // empty in scenes without tangential history
 };
 inline constexpr CheckpointField kCheckpointFields[] = {
-    {"x", CheckpointType::f64, CheckpointExtent::particle, 1, false},
-    {"y", CheckpointType::f64, CheckpointExtent::particle, 1, false},
-    {"z", CheckpointType::f64, CheckpointExtent::particle, 1, false},
-    {"vx", CheckpointType::f64, CheckpointExtent::particle, 1, false},
-    {"vy", CheckpointType::f64, CheckpointExtent::particle, 1, false},
-    {"vz", CheckpointType::f64, CheckpointExtent::particle, 1, false},
-    {"wx", CheckpointType::f64, CheckpointExtent::particle, 1, false},
-    {"wy", CheckpointType::f64, CheckpointExtent::particle, 1, false},
-    {"wz", CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {kStateNames[0], CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {kStateNames[1], CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {kStateNames[2], CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {kStateNames[3], CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {kStateNames[4], CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {kStateNames[5], CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {kStateNames[6], CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {kStateNames[7], CheckpointType::f64, CheckpointExtent::particle, 1, false},
+    {kStateNames[8], CheckpointType::f64, CheckpointExtent::particle, 1, false},
     {"id", CheckpointType::i32, CheckpointExtent::particle, 1, false},
     {"radius", CheckpointType::f64, CheckpointExtent::particle, 1, false},
     {"history", CheckpointType::f64, CheckpointExtent::slot, 3, true},

@@ -336,10 +336,10 @@ void bench_saeki(const BenchOptions& o, Backend backend) {
   const long warm = std::lround(o.warmup / dt);
   const long steps = std::max(1L, std::lround(o.periods / (frequency * dt)) / every) * every;
   std::printf(
-      "\n# the Saeki damper (examples/saeki_250.toml) on its SDOF, 1 N at %g Hz, dt = %.4g s, one "
+      "\n# the Saeki damper (examples/saeki_250.toml) on its SDOF, %g N at %g Hz, dt = %.4g s, one "
       "thread: bed settled (%.2f s), %g s of warm-up, then %g periods (%ld steps) timed, coupled "
       "and then the DEM alone from the same state\n",
-      frequency, dt, settled.time_s, o.warmup, o.periods, steps);
+      deck.excitation.amplitude, frequency, dt, settled.time_s, o.warmup, o.periods, steps);
   std::printf("%-10s %-10s %-9s %-10s %-14s %-9s\n", "run", "particles", "steps", "wall_s",
               "psteps_per_s", "contacts");
   for (long k = 0; k < warm; k += every) system.advance();

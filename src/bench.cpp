@@ -180,27 +180,48 @@ double contacts_per_particle(const DemEngine& engine, const EngineConfig& config
          static_cast<double>(centre.size());
 }
 
+// The median and range of repeated timings.
+struct Spread {
+  double median, min, max;
+};
+Spread spread(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return {n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]), v.front(), v.back()};
+}
+std::string range_text(const Spread& s) {
+  char text[64];
+  std::snprintf(text, sizeof text, "[%.3g, %.3g]", s.min, s.max);
+  return text;
+}
+
 // One scene the user runs: warmed up once, then timed over whole periods from the same state at
-// each thread count.
+// each thread count, o.repeat times (the same trajectory each time).
 void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOptions& o) {
   const long steps = period_steps(o.periods, s, config.dt);
   std::printf(
       "\n# %s; shaken %g mm at %g Hz along x, dt = %g s: %g s of warm-up from a "
-      "random fill (untimed), then %g periods (%ld steps) timed\n",
-      title, 1e3 * s.amplitude, s.frequency, config.dt, o.warmup, o.periods, steps);
-  std::printf("%-10s %-8s %-9s %-10s %-14s %-16s %-9s %-34s %s\n", "particles", "threads", "steps",
-              "wall_s", "psteps_per_s", "bytes/particle", "contacts", "variant", "state_sum");
+      "random fill (untimed), then %g periods (%ld steps) timed, median and range of %d runs\n",
+      title, 1e3 * s.amplitude, s.frequency, config.dt, o.warmup, o.periods, steps, o.repeat);
+  std::printf("%-10s %-8s %-9s %-10s %-14s %-22s %-16s %-9s %-34s %s\n", "particles", "threads",
+              "steps", "wall_s", "psteps_per_s", "range", "bytes/particle", "contacts", "variant",
+              "state_sum");
   config.threads = *std::max_element(o.threads.begin(), o.threads.end());
   const Warmed warmed = warm_up(config, s, o.warmup);
   for (int t : o.threads) {
     config.threads = t;
     std::unique_ptr<DemEngine> engine;
-    const double wall = time_warmed(config, warmed, steps, s, engine);
-    const double ps = static_cast<double>(steps) * engine->count();
+    std::vector<double> walls, rates;
+    for (int r = 0; r < o.repeat; ++r) {
+      walls.push_back(time_warmed(config, warmed, steps, s, engine));
+      rates.push_back(static_cast<double>(steps) * engine->count() / walls.back());
+    }
+    const Spread rate = spread(rates);
     const double per_particle =
         contacts_per_particle(*engine, config, shaken(s, warmed.step + steps, config.dt));
-    std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-16zu %-9.2f %-34s %.17g\n", engine->count(), t,
-                steps, wall, ps / wall, engine->bytes_per_particle(), per_particle,
+    std::printf("%-10d %-8d %-9ld %-10.3f %-14.4g %-22s %-16zu %-9.2f %-34s %.17g\n",
+                engine->count(), t, steps, spread(walls).median, rate.median,
+                range_text(rate).c_str(), engine->bytes_per_particle(), per_particle,
                 engine->variant().c_str(), state_sum(*engine));
     std::fflush(stdout);
   }
@@ -221,6 +242,10 @@ void add_bench_options(CLI::App& app, BenchOptions& o) {
       ->check(CLI::Range(0.0, 100.0));
   app.add_option("--periods", o.periods, "whole periods timed (default 1)")
       ->check(CLI::Range(0.01, 1000.0));
+  app.add_option("--repeat", o.repeat,
+                 "time each flow this many times from the same state and print the median and "
+                 "the range (default 3; this machine's runs differ by up to a third)")
+      ->check(CLI::Range(1, 1000));
   app.add_flag("--box,!--no-box", o.box,
                "the shaken box at each --particles count (default on; --no-box: the pile only)");
   app.add_flag("--saeki,!--no-saeki", o.saeki,
@@ -340,39 +365,57 @@ void bench_saeki(const BenchOptions& o, Backend backend) {
       "thread: bed settled (%.2f s), %g s of warm-up, then %g periods (%ld steps) timed, coupled "
       "and then the DEM alone from the same state\n",
       deck.excitation.amplitude, frequency, dt, settled.time_s, o.warmup, o.periods, steps);
-  std::printf("%-10s %-10s %-9s %-10s %-14s %-9s\n", "run", "particles", "steps", "wall_s",
-              "psteps_per_s", "contacts");
+  std::printf("%-10s %-10s %-9s %-14s %-22s %-9s\n", "run", "particles", "steps", "psteps_per_s",
+              "range", "contacts");
   for (long k = 0; k < warm; k += every) system.advance();
+  const StateArrays warmed = system.save();
   const StateArrays bed = system.engines().front()->save();
   const EngineConfig& config = scene.dampers.front().engine;
   const int n = system.particle_count();
-  auto report = [&](const char* what, std::chrono::steady_clock::time_point start,
-                    const DemEngine& engine, const ContainerKinematics& container) {
-    const double wall =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::printf("%-10s %-10d %-9ld %-10.3f %-14.4g %-9.2f\n", what, n, steps, wall,
-                static_cast<double>(steps) * n / wall,
-                contacts_per_particle(engine, config, container));
+  auto seconds_since = [](std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  auto report = [&](const char* what, const std::vector<double>& walls, const DemEngine& engine,
+                    const ContainerKinematics& container) {
+    std::vector<double> rates;
+    for (double wall : walls) rates.push_back(static_cast<double>(steps) * n / wall);
+    const Spread rate = spread(rates);
+    std::printf("%-10s %-10d %-9ld %-14.4g %-22s %-9.2f\n", what, n, steps, rate.median,
+                range_text(rate).c_str(), contacts_per_particle(engine, config, container));
     std::fflush(stdout);
+    return rate.median;
   };
   std::vector<ContainerKinematics> motion;  // the container at the start of each exchange
-  auto start = std::chrono::steady_clock::now();
-  for (long k = 0; k < steps; k += every) {
-    motion.push_back(system.container_now(0));
-    system.advance();
+  std::vector<double> walls;
+  for (int r = 0; r < o.repeat; ++r) {
+    system.restore(warmed);
+    motion.clear();
+    const auto start = std::chrono::steady_clock::now();
+    for (long k = 0; k < steps; k += every) {
+      motion.push_back(system.container_now(0));
+      system.advance();
+    }
+    walls.push_back(seconds_since(start));
   }
-  report("coupled", start, *system.engines().front(), system.container_now(0));
+  const double coupled =
+      report("coupled", walls, *system.engines().front(), system.container_now(0));
   EngineConfig alone = config;
   alone.dt = dt;
-  const auto engine = make_engine(alone);
-  engine->restore(bed);
-  start = std::chrono::steady_clock::now();
-  for (long k = 0; k < steps; ++k) {
-    if (engine->compute(motion[static_cast<std::size_t>(k / every)], dt).flags)
-      throw SimulationError("bench scene blew up");
-    engine->accept();
+  std::unique_ptr<DemEngine> engine;
+  walls.clear();
+  for (int r = 0; r < o.repeat; ++r) {
+    engine = make_engine(alone);
+    engine->restore(bed);
+    const auto start = std::chrono::steady_clock::now();
+    for (long k = 0; k < steps; ++k) {
+      if (engine->compute(motion[static_cast<std::size_t>(k / every)], dt).flags)
+        throw SimulationError("bench scene blew up");
+      engine->accept();
+    }
+    walls.push_back(seconds_since(start));
   }
-  report("DEM alone", start, *engine, motion.back());
+  const double dem = report("DEM alone", walls, *engine, motion.back());
+  std::printf("coupled / DEM alone: %.3f (medians)\n", coupled / dem);
 }
 
 }  // namespace

@@ -18,6 +18,7 @@ struct BenchOptions {
   long steps = 0;         // > 0: that many steps from the lattice, set-up included (no warm-up)
   double warmup = 0.2;    // s of shaking before the timing (the fall from the fill)
   double periods = 1;     // whole periods timed
+  int repeat = 3;         // timings of each flow: median and range
   bool box = true;        // the shaken box at each particle count
   bool pile = true;       // also the dense pile
   bool saeki = true;      // also the Saeki damper on its structure against its DEM alone

@@ -35,7 +35,7 @@ for scene in ${SCENES:-a b p}; do
   for cores in 1 2; do
     p_rates=() l_rates=()
     for _ in $(seq "$repeat"); do
-      p_rates+=("$("$pdsim" bench "${flags[@]}" --threads "$cores" --warmup "$warmup" \
+      p_rates+=("$("$pdsim" bench "${flags[@]}" --repeat 1 --threads "$cores" --warmup "$warmup" \
         --periods "$periods" | awk -v n="$particles" '$1 == n {r = $5} END {print r}')")
       l_rates+=("$(WARMUP=$warm_steps JITTER_Y=2e-5 "$here/liggghts/run_liggghts.sh" "$scene" \
         "$cores" "$steps" | grep -o 'particle_steps_per_s=[^ ]*' | cut -d= -f2)")

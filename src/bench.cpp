@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <exception>
 #include <numeric>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -51,6 +52,11 @@ struct Shake {
 constexpr Shake kBoxShake{0.004, 20.0};   // the shaken box, fluidised
 constexpr Shake kPileShake{0.001, 15.0};  // the Saeki-size pile, which barely moves
 
+// Wall seconds since `start`.
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 // The shaken container at step n.
 ContainerKinematics shaken(Shake s, long n, double dt) {
   const double omega = 2 * kPi * s.frequency, t = static_cast<double>(n) * dt;
@@ -87,55 +93,48 @@ double time_engine(const EngineConfig& config, long steps, long long* particle_s
   auto engine = make_engine(config);
   shake(*engine, config.dt, first, steps);
   *particle_steps = static_cast<long long>(steps) * engine->count();
-  const double wall =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double wall = seconds_since(start);
   if (bytes) *bytes = engine->bytes_per_particle();
   if (sum) *sum = state_sum(*engine);
   return wall;
 }
 
-EngineConfig bench_config(int particles, int threads, Backend backend, Fill fill = Fill::lattice) {
-  DamperSpec d = shaken_box(particles);
-  d.particles.fill = fill;
+// Steel spheres d = 5 mm (7800 kg/m^3) filled into the box of `d` as `d` says, Hertz + Mindlin
+// history with Young's modulus `young` and restitution `restitution`, mu = 0.3, gravity.
+EngineConfig steel_spheres(const DamperSpec& d, double young, double restitution, double dt,
+                           int threads, Backend backend) {
   EngineConfig c;
   c.backend = backend;
   c.threads = threads;
   c.geometry.half_size = 0.5 * d.container.size;
-  c.radius.assign(static_cast<std::size_t>(particles), 0.0025);
+  c.radius.assign(static_cast<std::size_t>(d.particles.count), 0.0025);
   c.density = 7800;
   c.gravity = Vec3{0, 0, -9.81};
-  c.dt = 1e-6;
-  c.contact = hertz_contact(2e11, 0.3, 0.5, 0.3);
-  c.contact.linear_stiffness = 1e6;
-  c.contact.rolling_friction = 0.01;
+  c.dt = dt;
+  c.contact = hertz_contact(young, 0.3, restitution, 0.3);
   for (const Vec3& p : fill_particles(d, c.radius, SourcePos{"bench", 0, 0}, "bench"))
     c.particles.push_back({p, {}, {}});
   return c;
 }
 
+EngineConfig bench_config(int particles, int threads, Backend backend, Fill fill = Fill::lattice) {
+  DamperSpec d = shaken_box(particles);
+  d.particles.fill = fill;
+  EngineConfig c = steel_spheres(d, 2e11, 0.5, 1e-6, threads, backend);
+  c.contact.linear_stiffness = 1e6;
+  c.contact.rolling_friction = 0.01;
+  return c;
+}
+
 // The damper of examples/saeki_250.toml as a dense pile: 250 steel spheres d = 5 mm, randomly
 // filled into a 50 mm cube, Hertz (E softened to 2e9 Pa, as the example) + Mindlin history,
-// e = 0.6, mu = 0.3, gravity, dt = 4e-6 s (0.15 Rayleigh times); shaken 1 mm at 15 Hz, it
-// stays a pile.
-EngineConfig pile_config(int threads, Backend backend) {
-  DamperSpec d;
-  d.container.shape = ContainerShape::box;
+// e = 0.6, mu = 0.3, gravity, dt = 4e-6 s (0.15 Rayleigh times; validation/liggghts/ uses the
+// same); shaken 1 mm at 15 Hz, it stays a pile.
+EngineConfig pile_config(Backend backend) {
+  DamperSpec d = shaken_box(250);
   d.container.size = {0.05, 0.05, 0.05};
-  d.particles.count = 250;
-  d.particles.diameter = 0.005;
-  d.particles.density = 7800;
-  EngineConfig c;
-  c.backend = backend;
-  c.threads = threads;
-  c.geometry.half_size = 0.5 * d.container.size;
-  c.radius.assign(250, 0.0025);
-  c.density = 7800;
-  c.gravity = Vec3{0, 0, -9.81};
-  c.dt = 4e-6;
-  c.contact = hertz_contact(2e9, 0.3, 0.6, 0.3);
-  for (const Vec3& p : fill_particles(d, c.radius, SourcePos{"bench", 0, 0}, "bench"))
-    c.particles.push_back({p, {}, {}});
-  return c;
+  d.particles.fill = Fill::random;
+  return steel_spheres(d, 2e9, 0.6, 4e-6, 1, backend);
 }
 
 long period_steps(double periods, Shake s, double dt) {
@@ -165,7 +164,7 @@ double time_warmed(const EngineConfig& config, const Warmed& w, long steps, Shak
   engine->restore(w.state);
   const auto start = std::chrono::steady_clock::now();
   shake(*engine, config.dt, w.step, steps, s);
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return seconds_since(start);
 }
 
 // Contacts per particle of an engine's state (partners and walls), with its container at
@@ -315,26 +314,31 @@ void bench_coupling() {
     for (IntegratorKind integrator : {IntegratorKind::exact, IntegratorKind::cvode})
       for (int k = 0; k < 3; ++k) {
         const Deck d = exchange_deck(beam, static_cast<CouplingScheme>(k), integrator);
-        const Scene scene = build_scene(d, 1);
+        std::optional<Scene> built;
+        try {
+          built.emplace(build_scene(d, 1));
+        } catch (const InputError&) {
+          // The full 20-element beam's stiff modes are not resolved at this step: interleaved
+          // coupling refuses it, as it would the user's deck.
+          std::printf("%-6s %-12s %-12s refused (unresolved modes; see coupling.scheme)\n",
+                      beam ? "beam20" : "sdof",
+                      integrator == IntegratorKind::exact ? "exact" : "cvode", schemes[k]);
+          continue;
+        }
+        const Scene& scene = *built;
         CoupledSystem system(scene);
         system.configure(1e-5, Drive{ExcitationInput::force, 1.0, 2 * kPi * 15});
         const int steps = integrator == IntegratorKind::exact ? 20000 : 2000;
         const auto start = std::chrono::steady_clock::now();
         for (int n = 0; n < steps; ++n) system.advance();
-        const double us =
-            1e6 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /
-            steps;
+        const double us = 1e6 * seconds_since(start) / steps;
         std::printf("%-6s %-12s %-12s %-12.3f\n", beam ? "beam20" : "sdof",
                     integrator == IntegratorKind::exact ? "exact" : "cvode", schemes[k], us);
       }
   // The DEM step it is compared with: the Saeki scene (250 spheres, 50 mm box), one thread.
-  EngineConfig c = bench_config(250, 1, Backend::cpu);
   DamperSpec saeki = shaken_box(250);
   saeki.container.size = {0.05, 0.05, 0.05};
-  c.geometry.half_size = 0.5 * saeki.container.size;
-  c.particles.clear();
-  for (const Vec3& p : fill_particles(saeki, c.radius, SourcePos{"bench", 0, 0}, "bench"))
-    c.particles.push_back({p, {}, {}});
+  const EngineConfig c = steel_spheres(saeki, 2e11, 0.5, 1e-6, 1, Backend::cpu);
   long long ps = 0;
   const long steps = 20000;
   const double wall = time_engine(c, steps, &ps);
@@ -369,12 +373,8 @@ void bench_saeki(const BenchOptions& o, Backend backend) {
               "range", "contacts");
   for (long k = 0; k < warm; k += every) system.advance();
   const StateArrays warmed = system.save();
-  const StateArrays bed = system.engines().front()->save();
   const EngineConfig& config = scene.dampers.front().engine;
   const int n = system.particle_count();
-  auto seconds_since = [](std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  };
   auto report = [&](const char* what, const std::vector<double>& walls, const DemEngine& engine,
                     const ContainerKinematics& container) {
     std::vector<double> rates;
@@ -405,7 +405,7 @@ void bench_saeki(const BenchOptions& o, Backend backend) {
   walls.clear();
   for (int r = 0; r < o.repeat; ++r) {
     engine = make_engine(alone);
-    engine->restore(bed);
+    engine->restore(get_state(warmed, "damper0."));
     const auto start = std::chrono::steady_clock::now();
     for (long k = 0; k < steps; ++k) {
       if (engine->compute(motion[static_cast<std::size_t>(k / every)], dt).flags)
@@ -442,7 +442,7 @@ int run_bench(const BenchOptions& o) {
     flows.push_back(
         {"dense pile (the Saeki damper): 250 spheres d = 5 mm in a 50 mm cube, E = "
          "2e9 Pa, hertz/history, gravity",
-         pile_config(1, backend), kPileShake});
+         pile_config(backend), kPileShake});
   if (o.steps == 0) {
     for (const Flow& f : flows) bench_flow(f.title.c_str(), f.config, f.shake, o);
     if (o.saeki) bench_saeki(o, backend);

@@ -201,87 +201,109 @@ void FrequencyRun::learn_impedance(const PeriodSummary& mean, double omega) {
   }
 }
 
+void FrequencyRun::run_period() {
+  Ongoing& o = *ongoing_;
+  const double h = dt_ * system_.steps_per_advance();
+  for (int s = 0; s < o.samples; ++s) {
+    const double angle = system_.drive().angle(system_.time());
+    step();
+    o.tracker.add(system_.last(), h, angle, system_.damper_displacements(),
+                  system_.damper_forces());
+  }
+  if (progress_) progress_(o.frequency, double(o.tracker.periods()) / o.max_periods);
+}
+
+// The periods after the predicted start's refinement, judged as statistics.
+Stationary FrequencyRun::judge() const {
+  const Ongoing& o = *ongoing_;
+  const SettleSpec& settle = scene_.excitation.settle;
+  const auto all =
+      o.tracker.series(o.prescribed ? &PeriodSummary::force : &PeriodSummary::displacement);
+  const std::vector<std::complex<double>> series(all.begin() + o.settled_from, all.end());
+  const int n = static_cast<int>(series.size());
+  // With R realisations the point's interval is over their means, about sqrt(R) narrower
+  // than each run's own.
+  // A fixed run is judged once, on what it has: an interval from two batches is wide but
+  // says what the periods show.
+  const SteadyStateCriteria criteria{
+      settle.tolerance * std::sqrt(double(settle.realisations)), settle.min_periods,
+      o.fixed ? std::min(settle.batches, 2) : settle.batches, !o.fixed};
+  Stationary s = analyse_periods(
+      series, criteria, settle.average_periods > 0 ? std::max(0, n - settle.average_periods) : -1);
+  s.periods += o.settled_from;
+  s.discarded += o.settled_from;
+  return s;
+}
+
 FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart start) {
   const ExcitationSpec& x = scene_.excitation;
+  const SettleSpec& settle = x.settle;
   const bool prescribed = x.kind == ExcitationKind::prescribed;
   const int samples = configure(frequency, prescribed ? x.motion.amplitude : x.amplitude);
-  PeriodTracker tracker(samples, system_.engines().size());
-  const double h = dt_ * system_.steps_per_advance(), omega = 2 * kPi * frequency;
-  auto run_period = [&] {
-    for (int s = 0; s < samples; ++s) {
-      const double angle = system_.drive().angle(system_.time());
-      step();
-      tracker.add(system_.last(), h, angle, system_.damper_displacements(),
-                  system_.damper_forces());
-    }
-  };
-  const SettleSpec& settle = x.settle;
   const bool fixed = fixed_duration(x);
   const int max_periods = fixed ? std::max(1, static_cast<int>(std::lround(x.duration * frequency)))
                                 : settle.max_periods;
+  ongoing_.emplace(Ongoing{frequency, samples, max_periods, 0, fixed, prescribed,
+                           PeriodTracker(samples, system_.engines().size())});
+  Ongoing& o = *ongoing_;
+  const double omega = 2 * kPi * frequency;
   // The predicted start, refined: the damper's impedance measured over a few periods at this
   // frequency gives a better prediction, and while that moves the structure's state by more
   // than a quarter of the tolerance the structure is put on it again, so that it does not ring
   // at its own frequency for hundreds of periods (a transient decays over 1 / (zeta w) seconds).
   // A prediction that stops improving by half a round is limited by the bed's own scatter, and
   // is left. Those periods are warm-up.
-  int settled_from = 0;
   if (!prescribed && start != FrequencyStart::carried) {
     std::complex<double> predicted = predict_start();
     double moved_before = kInfinity;
     for (int round = 0; round < kRefinements && !system_.engines().empty() &&
-                        tracker.periods() + kProbePeriods <= max_periods / 2;
+                        o.tracker.periods() + kProbePeriods <= max_periods / 2;
          ++round) {
       for (int k = 0; k < kProbePeriods; ++k) run_period();
-      learn_impedance(tracker.mean_from(tracker.periods() - kProbePeriods), omega);
+      learn_impedance(o.tracker.mean_from(o.tracker.periods() - kProbePeriods), omega);
       const std::complex<double> next =
           system_.response_of(system_.predicted_harmonic(impedance()));
       const double moved = std::abs(next - predicted);
       if (moved <= 0.25 * settle.tolerance * std::abs(next) || moved > 0.5 * moved_before) break;
       moved_before = moved;
       predicted = predict_start();
-      settled_from = tracker.periods();
+      o.settled_from = o.tracker.periods();
     }
   }
-  auto judge = [&] {
-    const auto all =
-        tracker.series(prescribed ? &PeriodSummary::force : &PeriodSummary::displacement);
-    const std::vector<std::complex<double>> series(all.begin() + settled_from, all.end());
-    const int n = static_cast<int>(series.size());
-    // With R realisations the point's interval is over their means, about sqrt(R) narrower
-    // than each run's own.
-    // A fixed run is judged once, on what it has: an interval from two batches is wide but
-    // says what the periods show.
-    const SteadyStateCriteria criteria{
-        settle.tolerance * std::sqrt(double(settle.realisations)), settle.min_periods,
-        fixed ? std::min(settle.batches, 2) : settle.batches, !fixed};
-    Stationary s =
-        analyse_periods(series, criteria,
-                        settle.average_periods > 0 ? std::max(0, n - settle.average_periods) : -1);
-    s.periods += settled_from;
-    s.discarded += settled_from;
-    return s;
-  };
-  while (tracker.periods() < max_periods) {
+  while (o.tracker.periods() < max_periods) {
     run_period();
-    if (progress_) progress_(frequency, double(tracker.periods()) / max_periods);
-    if (!fixed && tracker.periods() - settled_from >= settle.min_periods && judge().converged)
+    if (!fixed && o.tracker.periods() - o.settled_from >= settle.min_periods && judge().converged)
       break;
   }
+  return finish();
+}
+
+int FrequencyRun::periods_left() const {
+  return ongoing_ ? ongoing_->max_periods - ongoing_->tracker.periods() : 0;
+}
+
+FrequencyPoint FrequencyRun::extend(int more) {
+  for (int k = 0; k < more && periods_left() > 0; ++k) run_period();
+  return finish();
+}
+
+FrequencyPoint FrequencyRun::finish() {
+  const Ongoing& o = *ongoing_;
   FrequencyPoint point;
-  point.frequency = frequency;
+  point.frequency = o.frequency;
   point.judged = judge();
-  if (fixed) {  // no tolerance was asked for: a fixed run is done when its periods are stationary
+  if (o.fixed) {  // no tolerance was asked for: a fixed run is done when its periods are stationary
     Stationary& j = point.judged;
     j.converged = !j.trend && j.batches >= 2;
     j.reason = j.converged ? "" : j.trend ? "drifting" : "too few periods for an interval";
   }
-  point.mean = tracker.mean_from(point.judged.discarded);
+  point.mean = o.tracker.mean_from(point.judged.discarded);
   std::vector<double> energy;
-  for (const PeriodSummary& p : tracker.all()) energy.push_back(p.energy_in);
+  for (const PeriodSummary& p : o.tracker.all()) energy.push_back(p.energy_in);
   point.energy_in = batch_mean_interval(energy, point.judged.discarded, point.judged.batch_length);
-  if (!prescribed) learn_impedance(point.mean, omega);
-  point.periods = tracker.all();
+  // Learned again from all the periods after an extension: it replaces the earlier estimate.
+  if (!o.prescribed) learn_impedance(point.mean, 2 * kPi * o.frequency);
+  point.periods = o.tracker.all();
   for (PeriodSummary& p : point.periods) {  // the point keeps only what /periods reports
     p.container.clear();
     p.damper_force.clear();
@@ -324,6 +346,7 @@ StateArrays FrequencyRun::save() const {
 
 void FrequencyRun::restore(const StateArrays& state) {
   system_.restore(state);
+  ongoing_.reset();  // a restored state is between frequencies
   const auto& t = state_values<double>(state, "run.tallies");
   if (t.size() != 9) throw SimulationError("the checkpoint's run.tallies should hold 9 values");
   dissipated_n_ = t[0];

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "io/results.hpp"
@@ -52,6 +53,11 @@ class FrequencyRun {
   // Runs `frequency` (Hz) starting as `start` says; whole periods until converged or
   // settle.max_periods (or the fixed number of periods of a `sine` or a prescribed duration).
   FrequencyPoint run_frequency(double frequency, FrequencyStart start);
+  // Runs `more` further periods of the frequency run last (no more than its max_periods) and
+  // judges all its periods again: the driver asks for them while the realisations of a point
+  // do not yet agree. periods_left() says how many it may still run.
+  FrequencyPoint extend(int more);
+  int periods_left() const;
   // A free decay: `duration` seconds of time history from the initial displacement.
   void run_free_decay();
 
@@ -84,6 +90,18 @@ class FrequencyRun {
   std::vector<std::complex<double>> impedance() const;  // the dampers' model at the drive's w
   std::complex<double> predict_start();                 // returns the predicted response, m
   void learn_impedance(const PeriodSummary& mean, double omega);
+  // The frequency being run: its periods so far, and how they are judged.
+  struct Ongoing {
+    double frequency = 0;
+    int samples = 0, max_periods = 0;
+    int settled_from = 0;  // periods of the predicted start's refinement (warm-up)
+    bool fixed = false, prescribed = false;
+    PeriodTracker tracker;
+  };
+  std::optional<Ongoing> ongoing_;
+  void run_period();
+  Stationary judge() const;
+  FrequencyPoint finish();  // the point from the periods so far; the impedance learned from them
 
   const Scene& scene_;
   CoupledSystem system_;

@@ -175,29 +175,28 @@ FrequencyPoint unpack(const std::vector<double>& v) {
   return p;
 }
 
-// One row of /frf or /prescribed from the runs (realisations) of one frequency. With one run the
-// intervals are its batch-means intervals; with several, combine_runs() pools them when the runs
-// agree and takes the spread of their means when they do not (interval kind 1 and 2). The point
-// is converged when every run is stationary and the combined interval meets the tolerance.
-void add_row(Results& out, const std::vector<FrequencyPoint>& runs,
-             const ExcitationSpec& excitation) {
+// The verdict on one frequency from its runs (realisations). With one run the intervals are
+// its batch-means intervals; with several, combine_runs() pools them when the runs agree and
+// takes the spread of their means when they do not (interval kind 1 and 2). The point is
+// converged when every run is stationary and the combined interval meets the tolerance.
+struct PointVerdict {
+  double size = 0, amplitude_ci = 0, phase = 0, phase_ci = 0;  // m (prescribed: N), rad
+  MeanInterval energy;                                         // J per period
+  int periods = 0, discarded = 0, interval = 0;
+  bool converged = false;
+};
+
+PointVerdict judge_point(const std::vector<FrequencyPoint>& runs,
+                         const ExcitationSpec& excitation) {
   const SettleSpec& settle = excitation.settle;
-  const bool prescribed = excitation.kind == ExcitationKind::prescribed;
+  PointVerdict v;
   std::complex<double> mean = 0;
-  int periods = 0, discarded = 0;
   bool stationary = true;
-  std::vector<double> rms, dn, dt, dr;
-  double peak = 0;
   for (const FrequencyPoint& p : runs) {
     mean += p.judged.mean / double(runs.size());
-    periods = std::max(periods, p.judged.periods);
-    discarded = std::max(discarded, p.judged.discarded);
+    v.periods = std::max(v.periods, p.judged.periods);
+    v.discarded = std::max(v.discarded, p.judged.discarded);
     stationary = stationary && !p.judged.trend && p.judged.periods >= settle.min_periods;
-    rms.push_back(std::sqrt(p.mean.mean_square));
-    peak = std::max(peak, p.mean.peak);
-    dn.push_back(p.mean.dissipated_normal);
-    dt.push_back(p.mean.dissipated_tangential);
-    dr.push_back(p.mean.dissipated_rolling);
   }
   // Amplitudes and phases are combined separately: runs in regimes of different phase would
   // shrink a mean of their complex harmonics below every run's amplitude. Each run's phase is
@@ -216,21 +215,37 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs,
   for (const RunMean& run : a) typical += run.mean / double(a.size());
   const Combined amplitude = combine_runs(a, 0.5 * tolerance * typical);
   const Combined phase = combine_runs(q, 0.5 * tolerance);
-  const MeanInterval energy = combine_runs(e, 0).interval;
-  const double size = amplitude.interval.mean, amplitude_ci = amplitude.interval.half_width;
-  const double phase_mean = std::arg(along * std::polar(1.0, phase.interval.mean));
-  const double phase_ci = std::min(kPi, phase.interval.half_width);
-  const int interval = runs.size() == 1 ? 0 : amplitude.consistent && phase.consistent ? 1 : 2;
+  v.energy = combine_runs(e, 0).interval;
+  v.size = amplitude.interval.mean, v.amplitude_ci = amplitude.interval.half_width;
+  v.phase = std::arg(along * std::polar(1.0, phase.interval.mean));
+  v.phase_ci = std::min(kPi, phase.interval.half_width);
+  v.interval = runs.size() == 1 ? 0 : amplitude.consistent && phase.consistent ? 1 : 2;
   // A fixed run asked for no tolerance: it is done when every realisation is (frequency_run).
-  const bool converged =
-      runs.size() == 1 || fixed_duration(excitation)
-          ? std::all_of(runs.begin(), runs.end(),
-                        [](const FrequencyPoint& p) { return p.judged.converged; })
-          : stationary && amplitude_ci <= tolerance * size && phase_ci <= tolerance;
-  auto average = [](const std::vector<double>& v) {
+  v.converged = runs.size() == 1 || fixed_duration(excitation)
+                    ? std::all_of(runs.begin(), runs.end(),
+                                  [](const FrequencyPoint& p) { return p.judged.converged; })
+                    : stationary && v.amplitude_ci <= tolerance * v.size && v.phase_ci <= tolerance;
+  return v;
+}
+
+// One row of /frf or /prescribed (and its /periods) from the runs of one frequency.
+void add_row(Results& out, const std::vector<FrequencyPoint>& runs,
+             const ExcitationSpec& excitation) {
+  const bool prescribed = excitation.kind == ExcitationKind::prescribed;
+  const PointVerdict v = judge_point(runs, excitation);
+  std::vector<double> rms, dn, dt, dr;
+  double peak = 0;
+  for (const FrequencyPoint& p : runs) {
+    rms.push_back(std::sqrt(p.mean.mean_square));
+    peak = std::max(peak, p.mean.peak);
+    dn.push_back(p.mean.dissipated_normal);
+    dt.push_back(p.mean.dissipated_tangential);
+    dr.push_back(p.mean.dissipated_rolling);
+  }
+  auto average = [](const std::vector<double>& values) {
     double s = 0;
-    for (double x : v) s += x;
-    return s / double(v.size());
+    for (double x : values) s += x;
+    return s / double(values.size());
   };
   const double frequency = runs[0].frequency;
   const int realisations = static_cast<int>(runs.size());
@@ -251,34 +266,34 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs,
   if (prescribed) {
     PrescribedTable& p = out.prescribed;
     p.frequency.push_back(frequency);
-    p.dissipated_power.push_back(energy.mean * frequency);
-    p.dissipated_power_ci.push_back(energy.half_width * frequency);
-    p.force_amplitude.push_back(size);
-    p.force_amplitude_ci.push_back(amplitude_ci);
-    p.force_phase.push_back(phase_mean);
-    p.force_phase_ci.push_back(phase_ci);
-    p.periods.push_back(periods);
-    p.periods_discarded.push_back(discarded);
-    p.converged.push_back(converged ? 1 : 0);
+    p.dissipated_power.push_back(v.energy.mean * frequency);
+    p.dissipated_power_ci.push_back(v.energy.half_width * frequency);
+    p.force_amplitude.push_back(v.size);
+    p.force_amplitude_ci.push_back(v.amplitude_ci);
+    p.force_phase.push_back(v.phase);
+    p.force_phase_ci.push_back(v.phase_ci);
+    p.periods.push_back(v.periods);
+    p.periods_discarded.push_back(v.discarded);
+    p.converged.push_back(v.converged ? 1 : 0);
     p.realisations.push_back(realisations);
-    p.interval.push_back(interval);
+    p.interval.push_back(v.interval);
     return;
   }
   FrfTable& f = out.frf;
   f.frequency.push_back(frequency);
-  f.amplitude.push_back(size);
-  f.amplitude_ci.push_back(amplitude_ci);
-  f.phase.push_back(phase_mean);
-  f.phase_ci.push_back(phase_ci);
+  f.amplitude.push_back(v.size);
+  f.amplitude_ci.push_back(v.amplitude_ci);
+  f.phase.push_back(v.phase);
+  f.phase_ci.push_back(v.phase_ci);
   f.rms.push_back(average(rms));
   f.peak.push_back(peak);
-  f.periods.push_back(periods);
-  f.periods_discarded.push_back(discarded);
-  f.converged.push_back(converged ? 1 : 0);
+  f.periods.push_back(v.periods);
+  f.periods_discarded.push_back(v.discarded);
+  f.converged.push_back(v.converged ? 1 : 0);
   f.realisations.push_back(realisations);
-  f.interval.push_back(interval);
-  f.dissipated_energy.push_back(energy.mean);
-  f.dissipated_energy_ci.push_back(energy.half_width);
+  f.interval.push_back(v.interval);
+  f.dissipated_energy.push_back(v.energy.mean);
+  f.dissipated_energy_ci.push_back(v.energy.half_width);
   f.dissipated_normal.push_back(average(dn));
   f.dissipated_tangential.push_back(average(dt));
   f.dissipated_rolling.push_back(average(dr));
@@ -314,8 +329,8 @@ std::string bed_fingerprint(const Deck& deck, const Scene& scene) {
 }
 
 // Runs a deck's excitation on one system, or on several side by side: the realisations (fill
-// seeds seed + r) and, with start = "independent", every frequency of each. One task is one run
-// of a FrequencyRun through its frequencies; tasks share the machine's cores (`jobs` at a time).
+// seeds seed + r), or with start = "independent" the frequencies; tasks share the machine's
+// cores (`jobs` at a time).
 class Driver {
  public:
   Driver(const Deck& deck, std::vector<Scene> scenes, int jobs, bool quiet, std::string dump_path)
@@ -557,84 +572,173 @@ class Driver {
     }
   }
 
+  // Runs the frequencies. Realisations run side by side and in step: each frequency's runs are
+  // judged together (run_point()) before any goes on. With start = "independent" one task is
+  // one frequency, its realisations run in turn, and the tasks run side by side.
   void run_tasks() {
-    struct Task {
-      std::size_t realisation;
-      std::vector<std::size_t> frequencies;  // indices, in the order run
-    };
-    std::vector<Task> tasks;
-    if (independent()) {  // frequency by frequency, so that whole rows finish early
-      for (std::size_t i = 0; i < frequencies_.size(); ++i)
-        for (std::size_t r = 0; r < scenes_.size(); ++r)
-          if (!points_[r][i]) tasks.push_back({r, {i}});
-    } else {
-      for (std::size_t r = 0; r < scenes_.size(); ++r) {
-        Task t{r, {}};
-        for (std::size_t i = 0; i < frequencies_.size(); ++i)
-          if (!points_[r][i]) t.frequencies.push_back(i);
-        if (!t.frequencies.empty()) tasks.push_back(t);
-      }
-    }
+    const std::size_t runs_count = scenes_.size();
+    std::vector<std::size_t> todo;  // frequencies with a run still to do
+    for (std::size_t i = 0; i < frequencies_.size(); ++i)
+      for (std::size_t r = 0; r < runs_count; ++r)
+        if (!points_[r][i]) {
+          todo.push_back(i);
+          break;
+        }
     double total = 0;
-    for (const Task& t : tasks) total += double(t.frequencies.size());
-    Progress progress(quiet_, std::max(tasks.size(), scenes_.size()), std::max(total, 1.0),
+    for (const auto& per_run : points_)
+      for (const auto& point : per_run) total += point ? 0.0 : 1.0;
+    const std::size_t lines = independent() ? todo.size() : runs_count;
+    Progress progress(quiet_, std::max(lines, runs_count), std::max(total, 1.0),
                       !fixed_duration(scenes_.front().excitation));
     progress_ = &progress;
     settle_beds(progress);
-    in_parallel(tasks.size(), [&](std::size_t k) {
-      const Task& task = tasks[k];
-      const std::size_t r = task.realisation;
-      double done = 0;
-      FrequencyRun run(scenes_[r], [&](double f, double d) { progress.update(k, done + d, f); });
-      StateArrays carried;  // copied under the lock: other tasks write their states meanwhile
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (const auto it = task_states_.find(r); it != task_states_.end()) carried = it->second;
-      }
-      if (!independent() && !carried.empty()) {
-        run.restore(carried);
-        if (r == 0) run.set_records(results_.timeseries, results_.energy, results_.particles);
-      } else {
-        run.restore(beds_[r]);
-      }
-      Seen seen{run.system().particle_steps(), run.system().time()};
-      for (std::size_t i : task.frequencies) {
-        FrequencyPoint point;
-        try {
-          point = run.run_frequency(frequencies_[i], scenes_.front().excitation.start);
-        } catch (const SimulationError& e) {
-          fail(run, r, e);
+    if (independent()) {
+      in_parallel(todo.size(), [&](std::size_t k) {
+        const std::size_t i = todo[k];
+        double done = 0;
+        std::vector<std::unique_ptr<FrequencyRun>> owned(runs_count);
+        std::vector<FrequencyRun*> runs(runs_count, nullptr);
+        std::vector<Seen> seen(runs_count);
+        for (std::size_t r = 0; r < runs_count; ++r) {
+          if (points_[r][i]) continue;
+          owned[r] = std::make_unique<FrequencyRun>(
+              scenes_[r], [&, k](double f, double d) { progress.update(k, done + d, f); });
+          owned[r]->restore(beds_[r]);
+          runs[r] = owned[r].get();
+          seen[r] = {runs[r]->system().particle_steps(), runs[r]->system().time()};
         }
-        done += 1;
-        progress.update(k, done, frequencies_[i]);
-        finished_point(run, r, i, point, seen);
-        if (stopped_) return;
+        const Each in_turn = [&](std::size_t count, const std::function<void(std::size_t)>& f) {
+          for (std::size_t c = 0; c < count; ++c) done = double(c), f(c);
+        };
+        finished_points(i, runs, run_point(i, runs, in_turn), seen);
+        progress.update(k, double(runs_count), frequencies_[i]);
+      });
+    } else {
+      std::vector<std::unique_ptr<FrequencyRun>> owned(runs_count);
+      std::vector<double> done(runs_count, 0.0);
+      std::vector<Seen> seen(runs_count);
+      for (std::size_t r = 0; r < runs_count; ++r) {
+        owned[r] = std::make_unique<FrequencyRun>(
+            scenes_[r], [&, r](double f, double d) { progress.update(r, done[r] + d, f); });
+        FrequencyRun& run = *owned[r];
+        if (const auto it = task_states_.find(r); it != task_states_.end()) {
+          run.restore(it->second);
+          if (r == 0) run.set_records(results_.timeseries, results_.energy, results_.particles);
+        } else {
+          run.restore(beds_[r]);
+        }
+        seen[r] = {run.system().particle_steps(), run.system().time()};
       }
-    });
+      const Each side_by_side = [&](std::size_t count, const std::function<void(std::size_t)>& f) {
+        in_parallel(count, f);
+      };
+      for (std::size_t i : todo) {
+        std::vector<FrequencyRun*> runs(runs_count, nullptr);
+        for (std::size_t r = 0; r < runs_count; ++r)
+          if (!points_[r][i]) runs[r] = owned[r].get();
+        const std::vector<FrequencyPoint> got = run_point(i, runs, side_by_side);
+        for (std::size_t r = 0; r < runs_count; ++r) done[r] += runs[r] ? 1.0 : 0.0;
+        finished_points(i, runs, got, seen);
+        if (stopped_) break;
+      }
+    }
     progress.finish();
   }
 
-  // Records a finished point, tells the log, and writes a checkpoint while points remain.
-  void finished_point(const FrequencyRun& run, std::size_t r, std::size_t i,
-                      const FrequencyPoint& point, Seen& seen) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    points_[r][i] = point;
-    ++finished_;
-    account(run, seen);
-    if (r == 0) {
-      if (independent()) {
-        append_segment(run.timeseries(), i);
-      } else {
-        results_.timeseries = run.timeseries();
-        results_.energy = run.energy();
-        results_.particles = run.particles();
-      }
+  // Runs frequency i on the realisations given in `runs` (null where the point is known) and
+  // returns every realisation's point. Each run first goes until its own interval is within
+  // tolerance x sqrt(R). The point is then judged on all of them (judge_point()): runs that
+  // stopped early on narrow intervals of their own can still disagree, when the bed wanders
+  // more slowly than their periods showed (Saeki deck, 14 Hz: the phase moves 0.05 rad over
+  // 70-period stretches). While the point is not converged and runs have periods left, every
+  // run goes on by half the longest run's periods (at least min_periods) and the point is
+  // judged again, until the runs' means stop moving (still_moving()). Rounds of whole runs keep the
+  // result independent of how the runs are scheduled.
+  using Each = std::function<void(std::size_t, const std::function<void(std::size_t)>&)>;
+  std::vector<FrequencyPoint> run_point(std::size_t i, const std::vector<FrequencyRun*>& runs,
+                                        const Each& each) {
+    const ExcitationSpec& x = scenes_.front().excitation;
+    std::vector<FrequencyPoint> got(runs.size());
+    std::vector<std::size_t> active;
+    for (std::size_t r = 0; r < runs.size(); ++r) {
+      if (runs[r])
+        active.push_back(r);
+      else
+        got[r] = *points_[r][i];  // from a checkpoint written before the others finished
     }
-    progress_->say(describe(point, r));
+    auto round = [&](const std::function<FrequencyPoint(FrequencyRun&)>& work) {
+      each(active.size(), [&](std::size_t k) {
+        const std::size_t r = active[k];
+        try {
+          got[r] = work(*runs[r]);
+        } catch (const SimulationError& e) {
+          fail(*runs[r], r, e);
+        }
+      });
+    };
+    round([&](FrequencyRun& run) { return run.run_frequency(frequencies_[i], x.start); });
+    if (fixed_duration(x)) return got;
+    std::vector<FrequencyPoint> before;
+    for (PointVerdict v = judge_point(got, x); !v.converged; v = judge_point(got, x)) {
+      bool left = false;
+      for (std::size_t r : active) left = left || runs[r]->periods_left() > 0;
+      if (!left || (!before.empty() && !still_moving(before, got))) break;
+      const int more = std::max(x.settle.min_periods, v.periods / 2);
+      progress_->say(
+          "f = " + number(frequencies_[i]) + " Hz: " +
+          (v.interval == 2 ? "the realisations disagree" : "not converged over the realisations") +
+          "; each runs up to " + std::to_string(more) + " more periods");
+      before = got;
+      round([&](FrequencyRun& run) { return run.extend(more); });
+    }
+    return got;
+  }
+
+  // Whether a run that ran on is not settled on its own terms (drifting, or its interval too
+  // wide) or its mean moved over the new periods by more than its interval: runs that each
+  // hold still and still disagree are fills that differ (a spread interval), which more
+  // periods would not change.
+  static bool still_moving(const std::vector<FrequencyPoint>& before,
+                           const std::vector<FrequencyPoint>& after) {
+    for (std::size_t r = 0; r < after.size(); ++r) {
+      const Stationary &a = before[r].judged, &b = after[r].judged;
+      if (b.periods == a.periods) continue;  // it had no periods left
+      if (!b.converged || std::fabs(std::abs(b.mean) - std::abs(a.mean)) > b.amplitude_ci ||
+          std::fabs(std::arg(b.mean / a.mean)) > b.phase_ci)
+        return true;
+    }
+    return false;
+  }
+
+  // Records the finished points of frequency i (one per run in `runs`), tells the log, and
+  // writes a checkpoint while points remain.
+  void finished_points(std::size_t i, const std::vector<FrequencyRun*>& runs,
+                       const std::vector<FrequencyPoint>& got, std::vector<Seen>& seen) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++finished_;
+    for (std::size_t r = 0; r < runs.size(); ++r) {
+      if (!runs[r]) continue;
+      const FrequencyRun& run = *runs[r];
+      points_[r][i] = got[r];
+      account(run, seen[r]);
+      if (r == 0) {
+        if (independent()) {
+          append_segment(run.timeseries(), i);
+        } else {
+          results_.timeseries = run.timeseries();
+          results_.energy = run.energy();
+          results_.particles = run.particles();
+        }
+      }
+      progress_->say(describe(got[r], r));
+    }
     std::size_t remaining = 0;
     for (const auto& per_frequency : points_)
       for (const auto& p : per_frequency) remaining += !p;
     if (remaining == 0 || !checkpoint_) return;
+    if (!independent())
+      for (std::size_t r = 0; r < runs.size(); ++r)
+        if (runs[r]) task_states_[r] = runs[r]->save();
     Results snapshot = results_;
     add_rows(snapshot);  // the finished frequencies are readable (and plottable) in the .partial
     StateArrays& c = snapshot.checkpoint;
@@ -646,11 +750,8 @@ class Driver {
           c[point_key(k, f)] = pack(*points_[k][f]);
           c[point_key(k, f) + ".periods"] = pack_periods(*points_[k][f]);
         }
-    if (!independent()) {
-      task_states_[r] = run.save();
-      for (const auto& [k, state] : task_states_)
-        put_state(c, "task.r" + std::to_string(k) + ".", state);
-    }
+    for (const auto& [k, state] : task_states_)
+      put_state(c, "task.r" + std::to_string(k) + ".", state);
     c["run.totals"] = std::vector<double>{
         double(particle_steps_), simulated_,
         wall_before_ + std::chrono::duration<double>(Clock::now() - started_).count()};
@@ -760,7 +861,7 @@ class Driver {
   std::atomic<bool> stopped_{false};
   bool bed_from_file_ = false;
   std::optional<Results> failed_;
-  std::size_t finished_ = 0;
+  std::size_t finished_ = 0;  // frequencies finished in this process
   long long particle_steps_ = 0;
   double simulated_ = 0, wall_ = 0, wall_before_ = 0;
   Clock::time_point started_ = Clock::now();
@@ -867,9 +968,11 @@ Plan plan_run(const Deck& deck, const Scene& scene, int threads, int jobs,
   const ExcitationSpec& x = deck.excitation;
   const bool swept = x.kind == ExcitationKind::stepped_sine || x.kind == ExcitationKind::prescribed;
   const int realisations = swept ? x.settle.realisations : 1;
-  const int tasks = realisations * (swept && x.start == FrequencyStart::independent
-                                        ? static_cast<int>(x.frequencies.size())
-                                        : 1);
+  // Side by side: the realisations, or with independent frequencies the frequencies (each task
+  // runs its realisations in turn, Driver::run_tasks()).
+  const int tasks = swept && x.start == FrequencyStart::independent
+                        ? static_cast<int>(x.frequencies.size())
+                        : realisations;
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const int total = threads > 0 ? threads : deck.solver.threads > 0 ? deck.solver.threads : cores;
   Plan plan;

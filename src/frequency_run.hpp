@@ -58,6 +58,8 @@ class FrequencyRun {
   // do not yet agree. periods_left() says how many it may still run.
   FrequencyPoint extend(int more);
   int periods_left() const;
+  // Periods of the frequency run so far; safe to read from another thread while it runs.
+  int periods_run() const { return periods_run_.load(std::memory_order_relaxed); }
   // A free decay: `duration` seconds of time history from the initial displacement.
   void run_free_decay();
 
@@ -99,6 +101,7 @@ class FrequencyRun {
     PeriodTracker tracker;
   };
   std::optional<Ongoing> ongoing_;
+  std::atomic<int> periods_run_{0};
   void run_period();
   Stationary judge() const;
   FrequencyPoint finish();  // the point from the periods so far; the impedance learned from them

@@ -666,17 +666,55 @@ class Driver {
       else
         got[r] = *points_[r][i];  // from a checkpoint written before the others finished
     }
-    auto round = [&](const std::function<FrequencyPoint(FrequencyRun&)>& work) {
+    auto round = [&](const std::function<FrequencyPoint(std::size_t, FrequencyRun&)>& work) {
       each(active.size(), [&](std::size_t k) {
         const std::size_t r = active[k];
         try {
-          got[r] = work(*runs[r]);
+          got[r] = work(r, *runs[r]);
         } catch (const SimulationError& e) {
           fail(*runs[r], r, e);
         }
       });
     };
-    round([&](FrequencyRun& run) { return run.run_frequency(frequencies_[i], x.start); });
+    // Each run to its own criterion, then on to the longest one's periods, so that the point is
+    // judged on runs of one length. Side by side, a run that is done keeps up with the runs
+    // still going instead of waiting for them: the periods it runs are the same either way.
+    enum : int { kWaiting, kOnItsOwn, kDone };
+    std::vector<std::atomic<int>> stage(runs.size());
+    auto longest_going = [&](std::size_t r) {  // -1 when no other run is on its own
+      int longest = -1;
+      for (std::size_t q : active)
+        if (q != r && stage[q] == kOnItsOwn) longest = std::max(longest, runs[q]->periods_run());
+      return longest;
+    };
+    round([&](std::size_t r, FrequencyRun& run) {
+      stage[r] = kOnItsOwn;
+      FrequencyPoint point;
+      try {
+        point = run.run_frequency(frequencies_[i], x.start);
+      } catch (...) {
+        stage[r] = kDone;
+        throw;
+      }
+      stage[r] = kDone;
+      for (int target; (target = longest_going(r)) >= 0;) {
+        if (g_stop_runs) throw Interrupted();
+        if (run.periods_run() < target && run.periods_left() > 0)
+          point = run.extend(1);
+        else
+          std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+      return point;
+    });
+    int longest = 0;
+    for (std::size_t r : active) longest = std::max(longest, runs[r]->periods_run());
+    for (std::size_t r : active)
+      if (runs[r]->periods_run() < longest) {
+        round([&](std::size_t, FrequencyRun& run) {
+          return run.extend(longest - run.periods_run());
+        });
+        break;
+      }
     if (fixed_duration(x)) return got;
     std::vector<FrequencyPoint> before;
     for (PointVerdict v = judge_point(got, x); !v.converged; v = judge_point(got, x)) {
@@ -689,7 +727,7 @@ class Driver {
           (v.interval == 2 ? "the realisations disagree" : "not converged over the realisations") +
           "; each runs up to " + std::to_string(more) + " more periods");
       before = got;
-      round([&](FrequencyRun& run) { return run.extend(more); });
+      round([&](std::size_t, FrequencyRun& run) { return run.extend(more); });
     }
     return got;
   }

@@ -770,6 +770,20 @@ class Driver {
       }
       progress_->say(describe(got[r], r));
     }
+    if (got.size() > 1) {  // the point, as /frf gives it (a run's own verdict is only a part)
+      const ExcitationSpec& x = scenes_.front().excitation;
+      const PointVerdict v = judge_point(got, x);
+      const bool prescribed = x.kind == ExcitationKind::prescribed;
+      std::ostringstream s;
+      s.precision(4);
+      s << "f = " << frequencies_[i] << " Hz, " << got.size()
+        << " realisations: " << (prescribed ? "force " : "") << v.size * (prescribed ? 1.0 : 1e3)
+        << (prescribed ? " N" : " mm") << " +- " << 100 * v.amplitude_ci / std::max(v.size, 1e-300)
+        << " %, phase " << v.phase << " +- " << v.phase_ci << " rad"
+        << (v.interval == 2 ? " (their spread)" : "")
+        << (v.converged ? ", converged" : ", NOT converged");
+      progress_->say(s.str());
+    }
     std::size_t remaining = 0;
     for (const auto& per_frequency : points_)
       for (const auto& p : per_frequency) remaining += !p;

@@ -210,7 +210,7 @@ void FrequencyRun::run_period() {
     o.tracker.add(system_.last(), h, angle, system_.damper_displacements(),
                   system_.damper_forces());
   }
-  periods_run_.store(o.tracker.periods(), std::memory_order_relaxed);
+  periods_running_.store(o.tracker.periods(), std::memory_order_relaxed);
   if (progress_) progress_(o.frequency, double(o.tracker.periods()) / o.max_periods);
 }
 
@@ -247,7 +247,6 @@ FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart star
   ongoing_.emplace(Ongoing{frequency, samples, max_periods, 0, fixed, prescribed,
                            PeriodTracker(samples, system_.engines().size())});
   Ongoing& o = *ongoing_;
-  periods_run_.store(0, std::memory_order_relaxed);
   const double omega = 2 * kPi * frequency;
   // The predicted start, refined: the damper's impedance measured over a few periods at this
   // frequency gives a better prediction, and while that moves the structure's state by more
@@ -291,6 +290,7 @@ FrequencyPoint FrequencyRun::extend(int more) {
 
 FrequencyPoint FrequencyRun::finish() {
   const Ongoing& o = *ongoing_;
+  periods_running_.store(0, std::memory_order_relaxed);
   FrequencyPoint point;
   point.frequency = o.frequency;
   point.judged = judge();

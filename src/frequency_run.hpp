@@ -58,8 +58,9 @@ class FrequencyRun {
   // do not yet agree. periods_left() says how many it may still run.
   FrequencyPoint extend(int more);
   int periods_left() const;
-  // Periods of the frequency run so far; safe to read from another thread while it runs.
-  int periods_run() const { return periods_run_.load(std::memory_order_relaxed); }
+  // Periods of the frequency now running, for other threads to read while it runs: 0 before
+  // run_frequency() and once a point is returned (its Stationary::periods has the count then).
+  int periods_running() const { return periods_running_.load(std::memory_order_relaxed); }
   // A free decay: `duration` seconds of time history from the initial displacement.
   void run_free_decay();
 
@@ -101,7 +102,7 @@ class FrequencyRun {
     PeriodTracker tracker;
   };
   std::optional<Ongoing> ongoing_;
-  std::atomic<int> periods_run_{0};
+  std::atomic<int> periods_running_{0};
   void run_period();
   Stationary judge() const;
   FrequencyPoint finish();  // the point from the periods so far; the impedance learned from them

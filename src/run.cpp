@@ -607,11 +607,13 @@ class Driver {
           runs[r] = owned[r].get();
           seen[r] = {runs[r]->system().particle_steps(), runs[r]->system().time()};
         }
+        // Progress: the runs of round 0 done; the later rounds count as the last run's.
         const Each in_turn = [&](std::size_t count, const std::function<void(std::size_t)>& f) {
-          for (std::size_t c = 0; c < count; ++c) done = double(c), f(c);
+          for (std::size_t c = 0; c < count; ++c) done = std::max(done, double(c)), f(c);
         };
         finished_points(i, runs, run_point(i, runs, in_turn), seen);
-        progress.update(k, double(runs_count), frequencies_[i]);
+        const auto ran = std::count_if(runs.begin(), runs.end(), [](auto* run) { return run; });
+        progress.update(k, double(ran), frequencies_[i]);
       });
     } else {
       std::vector<std::unique_ptr<FrequencyRun>> owned(runs_count);
@@ -684,7 +686,8 @@ class Driver {
     auto longest_going = [&](std::size_t r) {  // -1 when no other run is on its own
       int longest = -1;
       for (std::size_t q : active)
-        if (q != r && stage[q] == kOnItsOwn) longest = std::max(longest, runs[q]->periods_run());
+        if (q != r && stage[q] == kOnItsOwn)
+          longest = std::max(longest, runs[q]->periods_running());
       return longest;
     };
     round([&](std::size_t r, FrequencyRun& run) {
@@ -699,7 +702,7 @@ class Driver {
       stage[r] = kDone;
       for (int target; (target = longest_going(r)) >= 0;) {
         if (g_stop_runs) throw Interrupted();
-        if (run.periods_run() < target && run.periods_left() > 0)
+        if (point.judged.periods < target && run.periods_left() > 0)
           point = run.extend(1);
         else
           std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -707,11 +710,11 @@ class Driver {
       return point;
     });
     int longest = 0;
-    for (std::size_t r : active) longest = std::max(longest, runs[r]->periods_run());
+    for (std::size_t r : active) longest = std::max(longest, got[r].judged.periods);
     for (std::size_t r : active)
-      if (runs[r]->periods_run() < longest) {
-        round([&](std::size_t, FrequencyRun& run) {
-          return run.extend(longest - run.periods_run());
+      if (got[r].judged.periods < longest) {
+        round([&](std::size_t q, FrequencyRun& run) {
+          return run.extend(longest - got[q].judged.periods);
         });
         break;
       }
@@ -720,7 +723,13 @@ class Driver {
     for (PointVerdict v = judge_point(got, x); !v.converged; v = judge_point(got, x)) {
       bool left = false;
       for (std::size_t r : active) left = left || runs[r]->periods_left() > 0;
-      if (!left || (!before.empty() && !still_moving(before, got))) break;
+      if (!left) break;
+      if (!before.empty() && !still_moving(before, got)) {
+        progress_->say("f = " + number(frequencies_[i]) +
+                       " Hz: each realisation holds still, apart from the others (fills that "
+                       "differ): more periods would not bring them together");
+        break;
+      }
       const int more = std::max(x.settle.min_periods, v.periods / 2);
       progress_->say(
           "f = " + number(frequencies_[i]) + " Hz: " +
@@ -742,7 +751,7 @@ class Driver {
       const Stationary &a = before[r].judged, &b = after[r].judged;
       if (b.periods == a.periods) continue;  // it had no periods left
       if (!b.converged || std::fabs(std::abs(b.mean) - std::abs(a.mean)) > b.amplitude_ci ||
-          std::fabs(std::arg(b.mean / a.mean)) > b.phase_ci)
+          std::fabs(std::arg(b.mean * std::conj(a.mean))) > b.phase_ci)
         return true;
     }
     return false;

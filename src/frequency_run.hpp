@@ -55,8 +55,10 @@ class FrequencyRun {
   FrequencyPoint run_frequency(double frequency, FrequencyStart start);
   // Runs `more` further periods of the frequency run last (no more than its max_periods) and
   // judges all its periods again: the driver asks for them while the realisations of a point
-  // do not yet agree. periods_left() says how many it may still run.
+  // do not yet agree. periods_left() says how many it may still run; run_period() runs one
+  // without judging (extend(0) judges).
   FrequencyPoint extend(int more);
+  void run_period();
   int periods_left() const;
   // Periods of the frequency now running, for other threads to read while it runs: 0 before
   // run_frequency() and once a point is returned (its Stationary::periods has the count then).
@@ -103,7 +105,6 @@ class FrequencyRun {
   };
   std::optional<Ongoing> ongoing_;
   std::atomic<int> periods_running_{0};
-  void run_period();
   Stationary judge() const;
   FrequencyPoint finish();  // the point from the periods so far; the impedance learned from them
 

@@ -700,24 +700,23 @@ class Driver {
         throw;
       }
       stage[r] = kDone;
+      int periods = point.judged.periods, kept_up = 0;
       for (int target; (target = longest_going(r)) >= 0;) {
         if (g_stop_runs) throw Interrupted();
-        if (point.judged.periods < target && run.periods_left() > 0)
-          point = run.extend(1);
+        if (periods < target && run.periods_left() > 0)
+          run.run_period(), ++periods, ++kept_up;
         else
           std::this_thread::sleep_for(std::chrono::milliseconds(1));
       }
-      return point;
+      return kept_up > 0 ? run.extend(0) : point;  // judged once, on all its periods
     });
     int longest = 0;
     for (std::size_t r : active) longest = std::max(longest, got[r].judged.periods);
-    for (std::size_t r : active)
-      if (got[r].judged.periods < longest) {
-        round([&](std::size_t q, FrequencyRun& run) {
-          return run.extend(longest - got[q].judged.periods);
-        });
-        break;
-      }
+    if (std::any_of(active.begin(), active.end(),
+                    [&](std::size_t r) { return got[r].judged.periods < longest; }))
+      round([&](std::size_t r, FrequencyRun& run) {
+        return run.extend(longest - got[r].judged.periods);
+      });
     if (fixed_duration(x)) return got;
     std::vector<FrequencyPoint> before;
     for (PointVerdict v = judge_point(got, x); !v.converged; v = judge_point(got, x)) {
@@ -780,16 +779,12 @@ class Driver {
       progress_->say(describe(got[r], r));
     }
     if (got.size() > 1) {  // the point, as /frf gives it (a run's own verdict is only a part)
-      const ExcitationSpec& x = scenes_.front().excitation;
-      const PointVerdict v = judge_point(got, x);
-      const bool prescribed = x.kind == ExcitationKind::prescribed;
+      const PointVerdict v = judge_point(got, scenes_.front().excitation);
       std::ostringstream s;
       s.precision(4);
       s << "f = " << frequencies_[i] << " Hz, " << got.size()
-        << " realisations: " << (prescribed ? "force " : "") << v.size * (prescribed ? 1.0 : 1e3)
-        << (prescribed ? " N" : " mm") << " +- " << 100 * v.amplitude_ci / std::max(v.size, 1e-300)
-        << " %, phase " << v.phase << " +- " << v.phase_ci << " rad"
-        << (v.interval == 2 ? " (their spread)" : "")
+        << " realisations: " << amplitude_text(v.size, v.amplitude_ci) << ", phase " << v.phase
+        << " +- " << v.phase_ci << " rad" << (v.interval == 2 ? " (their spread)" : "")
         << (v.converged ? ", converged" : ", NOT converged");
       progress_->say(s.str());
     }
@@ -842,17 +837,23 @@ class Driver {
     results_.timeseries = all;
   }
 
-  std::string describe(const FrequencyPoint& p, std::size_t r) const {
+  // "0.4605 mm +- 0.25 %" (prescribed motion: "force 1.2 N +- 3 %").
+  std::string amplitude_text(double size, double half_width) const {
     std::ostringstream s;
     s.precision(4);
     const bool prescribed = scenes_.front().excitation.kind == ExcitationKind::prescribed;
-    const double size = std::abs(p.judged.mean);
+    s << (prescribed ? "force " : "") << size * (prescribed ? 1.0 : 1e3)
+      << (prescribed ? " N" : " mm") << " +- " << 100 * half_width / std::max(size, 1e-300) << " %";
+    return s.str();
+  }
+
+  std::string describe(const FrequencyPoint& p, std::size_t r) const {
+    std::ostringstream s;
+    s.precision(4);
     s << "f = " << p.frequency << " Hz";
     if (scenes_.size() > 1) s << " (realisation " << r + 1 << ")";
-    s << ": " << (prescribed ? "force " : "") << size * (prescribed ? 1.0 : 1e3)
-      << (prescribed ? " N" : " mm") << " +- "
-      << 100 * p.judged.amplitude_ci / std::max(size, 1e-300) << " %, " << p.judged.periods
-      << " periods (" << p.judged.discarded << " warm-up)";
+    s << ": " << amplitude_text(std::abs(p.judged.mean), p.judged.amplitude_ci) << ", "
+      << p.judged.periods << " periods (" << p.judged.discarded << " warm-up)";
     if (fixed_duration(scenes_.front().excitation))
       s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
     else

@@ -350,3 +350,130 @@ Stationary analyse_periods(const std::vector<std::complex<double>>& series,
 }
 
 }  // namespace pdsim
+
+namespace pdsim {
+namespace {
+
+// Mean of the fills `members` (indices into fills) about their mean direction; see GroupMean.
+GroupMean group_mean(const std::vector<FillValue>& fills, const std::vector<int>& members,
+                     double tolerance) {
+  GroupMean g;
+  g.fills = static_cast<int>(members.size());
+  std::complex<double> sum = 0;
+  for (int k : members) sum += fills[std::size_t(k)].harmonic;
+  // Amplitudes and phases are combined separately: fills in states of different phase would
+  // shrink a mean of their complex harmonics below every fill's amplitude. Each fill's phase is
+  // taken about the direction of that mean.
+  const std::complex<double> along = std::abs(sum) > 0 ? sum / std::abs(sum) : 1.0;
+  std::vector<RunMean> a, q;
+  std::vector<double> amplitudes, phases;
+  for (int k : members) {
+    const FillValue& f = fills[std::size_t(k)];
+    a.push_back({std::abs(f.harmonic), f.amplitude_ci, f.dof});
+    q.push_back({std::arg(std::conj(along) * f.harmonic), f.phase_ci, f.dof});
+    amplitudes.push_back(a.back().mean);
+    phases.push_back(q.back().mean);
+  }
+  double typical = 0;  // the mean amplitude, the scale of the tolerance
+  for (double x : amplitudes) typical += x / double(amplitudes.size());
+  // Fills that agree to within about the tolerance are one state for the question asked.
+  const Combined amplitude = combine_runs(a, 0.5 * tolerance * typical);
+  const Combined phase = combine_runs(q, 0.5 * tolerance);
+  g.amplitude = amplitude.interval;
+  g.phase = {std::arg(along * std::polar(1.0, phase.interval.mean)),
+             std::min(kPi, phase.interval.half_width)};
+  g.consistent = amplitude.consistent && phase.consistent;
+  const int r = g.fills;
+  auto predict = [r](const std::vector<double>& v) {
+    return r < 2 ? std::nan("") : student_t975(r - 1) * sample_sd(v) * std::sqrt(1 + 1.0 / r);
+  };
+  g.amplitude_spread = predict(amplitudes);
+  g.phase_spread = std::min(kPi, predict(phases));
+  return g;
+}
+
+}  // namespace
+
+Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance) {
+  Ensemble e;
+  const int n = static_cast<int>(fills.size());
+  std::vector<int> all(static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) all[std::size_t(k)] = k;
+  e.mean = group_mean(fills, all, tolerance);
+  // Branches: single linkage over the fills' complex harmonics (a union-find of the links).
+  std::vector<int> root(all);
+  auto find = [&](int k) {
+    while (root[std::size_t(k)] != k)
+      k = root[std::size_t(k)] = root[std::size_t(root[std::size_t(k)])];
+    return k;
+  };
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j < n; ++j) {
+      const FillValue &a = fills[std::size_t(i)], &b = fills[std::size_t(j)];
+      const double gap = std::fabs(std::abs(a.harmonic) - std::abs(b.harmonic));
+      const double larger = std::max(std::abs(a.harmonic), std::abs(b.harmonic));
+      if (gap <= tolerance * larger || gap <= a.amplitude_ci + b.amplitude_ci)
+        root[std::size_t(find(i))] = find(j);
+    }
+  std::vector<std::vector<int>> groups;
+  std::vector<int> group_of_root(static_cast<std::size_t>(n), -1);
+  for (int k = 0; k < n; ++k) {
+    int& g = group_of_root[std::size_t(find(k))];
+    if (g < 0) g = static_cast<int>(groups.size()), groups.emplace_back();
+    groups[std::size_t(g)].push_back(k);
+  }
+  for (const auto& members : groups) {
+    GroupMean g = group_mean(fills, members, tolerance);
+    // The share of the fills, with the Wilson score interval (95 %) of a binomial proportion.
+    const double p = double(g.fills) / n, z = 1.959963984540054, z2 = z * z;
+    const double centre = (p + z2 / (2.0 * n)) / (1 + z2 / n);
+    const double half = z / (1 + z2 / n) * std::sqrt(p * (1 - p) / n + z2 / (4.0 * n * n));
+    g.share = p;
+    g.share_low = std::max(0.0, centre - half);
+    g.share_high = std::min(1.0, centre + half);
+    e.branch.push_back(g);
+  }
+  std::vector<int> order(groups.size());
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
+  std::sort(order.begin(), order.end(), [&](int x, int y) {
+    return e.branch[std::size_t(x)].amplitude.mean > e.branch[std::size_t(y)].amplitude.mean;
+  });
+  std::vector<GroupMean> sorted;
+  e.branch_of.assign(static_cast<std::size_t>(n), 0);
+  for (std::size_t rank = 0; rank < order.size(); ++rank) {
+    sorted.push_back(e.branch[std::size_t(order[rank])]);
+    for (int k : groups[std::size_t(order[rank])])
+      e.branch_of[std::size_t(k)] = static_cast<int>(rank);
+  }
+  e.branch = std::move(sorted);
+
+  int unsettled = 0;
+  for (const FillValue& f : fills) unsettled += f.converged ? 0 : 1;
+  char text[96];
+  if (n == 0) {
+    e.reason = "no fills";
+  } else if (unsettled > 0) {
+    std::snprintf(text, sizeof text, "%d of %d fills not settled on their own", unsettled, n);
+    e.reason = text;
+  } else if (e.mean.within(tolerance)) {
+    e.result = e.branch.size() > 1 ? PointResult::branches : PointResult::one_state;
+  } else {
+    e.wants_fills = true;
+    const bool each =
+        e.branch.size() > 1 && std::all_of(e.branch.begin(), e.branch.end(),
+                                           [&](const GroupMean& g) { return g.within(tolerance); });
+    if (each) {
+      e.result = PointResult::branches;
+    } else {
+      std::snprintf(text, sizeof text, "the mean over %d fills is not known to the tolerance", n);
+      e.reason = text;
+    }
+  }
+  if (e.result == PointResult::branches) {
+    std::snprintf(text, sizeof text, "%zu branches", e.branch.size());
+    e.reason = text;
+  }
+  return e;
+}
+
+}  // namespace pdsim

@@ -72,6 +72,54 @@ struct Combined {
 };
 Combined combine_runs(const std::vector<RunMean>& runs, double resolution);
 
+// One fill (a realisation: a random packing of the damper) at one point: its own stationary
+// mean first harmonic and 95 % half-widths (src/frequency_run.cpp), batches - 1 degrees of
+// freedom, and whether it settled on its own.
+struct FillValue {
+  std::complex<double> harmonic;
+  double amplitude_ci = 0, phase_ci = 0;  // its unit, rad
+  int dof = 0;
+  bool converged = false;
+};
+
+// Mean amplitude and phase of a group of fills with their 95 % intervals (combine_runs():
+// pooled when the fills agree within their own intervals, else the Student-t spread of the
+// fills' values), and the 95 % prediction half-widths: where one more fill would lie,
+// t(R-1) s sqrt(1 + 1/R) over the fills' values (NaN for a single fill: not estimable).
+struct GroupMean {
+  MeanInterval amplitude, phase;  // phase in rad, of the group's mean direction
+  double amplitude_spread = 0, phase_spread = 0;
+  bool consistent = true;
+  int fills = 0;
+  // Its share of the point's fills, and the 95 % Wilson score interval of that proportion.
+  double share = 1, share_low = 0, share_high = 1;
+  // The amplitude (the FRF's quantity) known to `tolerance`, relative; the phase is reported
+  // with its interval (each fill's own phase has settled to the tolerance in rad).
+  bool within(double tolerance) const { return amplitude.half_width <= tolerance * amplitude.mean; }
+};
+
+// A point's result over its fills. Near resonance the fills of one damper design hold distinct
+// steady states; the result is their distribution: the ensemble mean with its interval, the
+// spread where one fill lies, and the branches: fills linked (single linkage) when their
+// amplitudes differ by at most the tolerance of the larger or by their own intervals, so that
+// fills in one state form one branch and states apart beyond the tolerance are told apart.
+enum class PointResult { none = 0, one_state = 1, branches = 2 };
+struct Ensemble {
+  GroupMean mean;                 // over every fill
+  std::vector<GroupMean> branch;  // ordered by amplitude, highest first
+  std::vector<int> branch_of;     // per fill, index into branch
+  PointResult result = PointResult::none;
+  // More fills would help: every fill settled, but the ensemble mean's interval misses the
+  // tolerance (its branches may each meet it: a result of several branches all the same).
+  bool wants_fills = false;
+  std::string reason;  // why not a result, or what the branches are ("" for one state)
+};
+// Result rules: every fill must have settled on its own (else not a result: a fill still
+// drifting at max_periods); then one state when the ensemble mean amplitude's interval meets
+// `tolerance` (relative), several branches when there are two or more and each branch's mean
+// meets it (the ensemble mean then carries its wide interval), else not a result.
+Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance);
+
 // Two-sided 95 % and 99 % quantiles of Student's t with `dof` degrees of freedom (infinity for
 // dof < 1).
 double student_t975(int dof);

@@ -4,6 +4,7 @@
 // transient (both refused), and deterministic series (converged at once, zero interval).
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -235,4 +236,110 @@ TEST_CASE("realisations that agree pool their intervals, ones that disagree give
   const Combined three = combine_runs({{0.0, 0, 9}, {0.0, 0, 9}, {1e-3, 0, 9}}, 1e-2);
   CHECK(three.consistent);
   CHECK(three.interval.half_width >= 2e-3 / 3 - 1e-15);
+}
+
+// The ensemble of fills on synthetic ensembles with a known answer: fills are drawn from a known
+// distribution of steady states, each fill's own value known to 0.2 % (as a settled fill near
+// resonance is), and judged by judge_ensemble() as a point of an FRF is.
+namespace {
+
+FillValue fill_at(std::complex<double> state, double own = 2e-3) {
+  return {state, own * std::abs(state), own, 9, true};
+}
+
+}  // namespace
+
+TEST_CASE(
+    "ensemble, one state: the mean's interval covers the truth and one fill in 20 lies "
+    "outside the spread, both at about 95 %") {
+  std::mt19937_64 rng(2026);
+  // Fills scattered by 5 % of the amplitude and 0.05 rad about kTruth, beyond their own 0.2 %.
+  std::normal_distribution<double> amplitude_noise(0.0, 0.05), phase_noise(0.0, 0.05);
+  auto draw = [&] {
+    return std::polar(std::abs(kTruth) * (1 + amplitude_noise(rng)),
+                      std::arg(kTruth) + phase_noise(rng));
+  };
+  const int trials = 2000, fills = 6;
+  int covered = 0, predicted = 0, one_branch = 0;
+  for (int trial = 0; trial < trials; ++trial) {
+    std::vector<FillValue> v;
+    for (int k = 0; k < fills; ++k) v.push_back(fill_at(draw()));
+    const Ensemble e = judge_ensemble(v, 2e-2);
+    covered += std::fabs(e.mean.amplitude.mean - std::abs(kTruth)) <= e.mean.amplitude.half_width;
+    predicted += std::fabs(std::abs(draw()) - e.mean.amplitude.mean) <= e.mean.amplitude_spread;
+    one_branch += e.branch.size() == 1;
+  }
+  // Binomial: 95 % of 2000 is 1900 +- 20 (2 sigma); the amplitude's mean is biased by E|x| only
+  // at second order (1.25e-3 relative), well inside the interval.
+  CHECK(covered >= 1870);
+  CHECK(covered <= 1930);
+  CHECK(predicted >= 1870);
+  CHECK(predicted <= 1930);
+  CHECK(one_branch > 0);
+  // With 6 fills a 5 % scatter leaves the mean known to about t5 0.05 / sqrt(6) = 5 %: not a
+  // result at 2 %, more fills wanted.
+  std::vector<FillValue> v;
+  for (int k = 0; k < fills; ++k) v.push_back(fill_at(draw()));
+  const Ensemble e = judge_ensemble(v, 2e-2);
+  CHECK(e.mean.amplitude.half_width > 2e-2 * e.mean.amplitude.mean);
+  CHECK(e.wants_fills);
+  // Fills that agree within their own intervals: one state, the intervals pooled.
+  const Ensemble same = judge_ensemble({fill_at(kTruth), fill_at(kTruth * 1.001)}, 2e-2);
+  CHECK(same.result == PointResult::one_state);
+  CHECK(same.mean.consistent);
+  CHECK_FALSE(same.wants_fills);
+  CHECK(std::isnan(judge_ensemble({fill_at(kTruth)}, 2e-2).mean.amplitude_spread));
+}
+
+TEST_CASE(
+    "ensemble, two branches: both found, each fill in its own, shares within their "
+    "binomial interval") {
+  std::mt19937_64 rng(7);
+  // 30 % of the fills have jumped down (0.45 of the amplitude, 2 rad later), 70 % have not; each
+  // branch scatters by 0.5 % about its state.
+  const std::complex<double> high = kTruth,
+                             low = std::polar(0.45 * std::abs(kTruth), std::arg(kTruth) - 2.0);
+  std::normal_distribution<double> noise(0.0, 0.005);
+  std::bernoulli_distribution jumped(0.3);
+  const int trials = 500, fills = 12;
+  int drawn = 0, found = 0, labelled = 0, share_covered = 0, results = 0;
+  for (int trial = 0; trial < trials; ++trial) {
+    std::vector<FillValue> v;
+    std::vector<bool> down;
+    for (int k = 0; k < fills; ++k) {
+      down.push_back(jumped(rng));
+      const std::complex<double> state = down.back() ? low : high;
+      v.push_back(fill_at(state * std::polar(1 + noise(rng), noise(rng))));
+    }
+    const int lows = static_cast<int>(std::count(down.begin(), down.end(), true));
+    if (lows == 0 || lows == fills) continue;  // one branch drawn: nothing to find
+    ++drawn;
+    const Ensemble e = judge_ensemble(v, 2e-2);
+    if (e.branch.size() != 2) continue;
+    ++found;
+    bool right = true;  // branch 0 is the higher
+    for (int k = 0; k < fills; ++k)
+      right = right && e.branch_of[std::size_t(k)] == (down[std::size_t(k)] ? 1 : 0);
+    labelled += right;
+    const GroupMean& b = e.branch[1];
+    share_covered += b.share_low <= 0.3 && 0.3 <= b.share_high;
+    results += e.result == PointResult::branches;
+    CHECK(b.amplitude.mean == doctest::Approx(0.45 * std::abs(kTruth)).epsilon(0.03));
+  }
+  CHECK(found >= 0.99 * drawn);  // a 2 % gap inside a branch of 0.5 % scatter is rare
+  CHECK(labelled == found);
+  // Wilson's interval covers p = 0.3 with 12 fills (1..11 low) with probability 0.961, summed
+  // over the binomial distribution; 2 sigma of 490 trials is 0.018.
+  CHECK(share_covered >= 0.94 * found);
+  CHECK(share_covered <= 0.98 * found);
+  CHECK(results >= 0.9 * found);  // each branch's mean known to 2 %
+}
+
+TEST_CASE("ensemble: a fill still drifting makes the point not a result, and fills do not help") {
+  FillValue drifting = fill_at(kTruth * 1.01);
+  drifting.converged = false;
+  const Ensemble e = judge_ensemble({fill_at(kTruth), drifting, fill_at(kTruth * 0.999)}, 2e-2);
+  CHECK(e.result == PointResult::none);
+  CHECK_FALSE(e.wants_fills);
+  CHECK(e.reason.find("1 of 3 fills not settled") != std::string::npos);
 }

@@ -548,19 +548,42 @@ std::vector<double> read_frequencies(const Table& t) {
       t.fail("frequencies", "expected at most " + std::to_string(kMaxFrequencies) +
                                 " frequencies, got " + std::to_string(f.size()));
   }
-  if (const auto down = t.choice("direction", {"up", "down"}); down && *down == 1)
-    std::reverse(f.begin(), f.end());
   return f;
 }
 
-// settle.realisations is 0 when not given: read_deck() resolves it once the fill is known.
+// The frequencies in the order they are run, each with its sweep (+1 up, -1 down): "up" (the
+// default) runs the list as given, "down" reversed, "both" as given and then back from its end.
+void read_direction(const Table& t, ExcitationSpec& e) {
+  const std::size_t direction = t.choice("direction", {"up", "down", "both"}).value_or(0);
+  std::vector<double>& f = e.frequencies;
+  if (direction == 1) std::reverse(f.begin(), f.end());
+  e.sweeps.assign(f.size(), direction == 1 ? -1 : 1);
+  if (direction == 2) {
+    if (e.start == FrequencyStart::independent)
+      t.fail("direction",
+             "expected \"up\" or \"down\" with start = \"independent\": "
+             "\"both\" compares sweeps that carry the state from one frequency "
+             "to the next");
+    const std::vector<double> up = f;
+    f.insert(f.end(), up.rbegin(), up.rend());
+    e.sweeps.resize(f.size(), -1);
+    if (f.size() > kMaxFrequencies)
+      t.fail("direction", "expected at most " + std::to_string(kMaxFrequencies) +
+                              " frequencies in both sweeps together, got " +
+                              std::to_string(f.size()));
+  }
+}
+
+// settle.realisations and max_realisations are 0 when not given: read_deck() resolves it once the
+// fill is known.
 SettleSpec read_settle(const Table& t) {
   SettleSpec s;
   s.realisations = 0;
+  s.max_realisations = 0;
   const auto settle = t.sub("settle", "a table { min_periods, max_periods, tolerance }");
   if (!settle) return s;
-  settle->allow_only(
-      {"min_periods", "max_periods", "tolerance", "batches", "average_periods", "realisations"});
+  settle->allow_only({"min_periods", "max_periods", "tolerance", "batches", "average_periods",
+                      "realisations", "max_realisations"});
   s.min_periods =
       static_cast<int>(settle->integer("min_periods", 1, kMaxPeriods).value_or(s.min_periods));
   s.max_periods =
@@ -594,6 +617,7 @@ SettleSpec read_settle(const Table& t) {
                                         std::to_string(s.average_periods));
   s.realisations =
       static_cast<int>(settle->integer("realisations", 1, 1000).value_or(s.realisations));
+  s.max_realisations = static_cast<int>(settle->integer("max_realisations", 1, 1000).value_or(0));
   return s;
 }
 
@@ -636,6 +660,7 @@ ExcitationSpec read_excitation(const Table& t) {
       e.frequencies = read_frequencies(t);
       e.settle = read_settle(t);
       e.start = read_start(t, false);
+      read_direction(t, e);
     } else {
       e.frequency = t.need_real("frequency", "a positive number (Hz)", positive, why);
       e.duration = t.need_real("duration", positive_s, positive, why);
@@ -666,6 +691,7 @@ ExcitationSpec read_excitation(const Table& t) {
     e.duration = t.real("duration", positive_s, positive).value_or(0);
     e.settle = read_settle(t);
     e.start = read_start(t, true);
+    read_direction(t, e);
   }
   return e;
 }
@@ -939,15 +965,35 @@ void settle_realisations(Deck& deck) {
   const char* one_run = deck.output.energy                ? "output.energy"
                         : deck.output.particles_every > 0 ? "output.particles"
                                                           : nullptr;
+  const bool min_given = x.settle.realisations > 0;
   if (x.settle.realisations == 0) x.settle.realisations = random_fill && !one_run ? 2 : 1;
+  // Fills are added where they disagree (near resonance) up to max_realisations.
+  if (x.settle.max_realisations == 0)
+    x.settle.max_realisations = random_fill && !one_run
+                                    ? std::max(x.settle.realisations, kDefaultMaxFills)
+                                    : x.settle.realisations;
+  if (x.settle.max_realisations < x.settle.realisations) {
+    const char* key = min_given && !deck.positions.count("excitation.settle.max_realisations")
+                          ? "excitation.settle.realisations"
+                          : "excitation.settle.max_realisations";
+    throw InputError(
+        deck.where(key), key,
+        "expected settle.max_realisations (" + std::to_string(x.settle.max_realisations) +
+            ") at least settle.realisations (" + std::to_string(x.settle.realisations) + ")");
+  }
+  if (x.settle.max_realisations > 1 && x.settle.realisations == 1 && !random_fill)
+    throw InputError(deck.where("excitation.settle.max_realisations"),
+                     "excitation.settle.max_realisations",
+                     "expected 1: a lattice fill is the same for every seed, so added fills "
+                     "need particles with fill = \"random\"");
   if (x.settle.realisations > 1 && !random_fill)
     throw InputError(deck.where("excitation.settle.realisations"), "excitation.settle.realisations",
                      "expected 1: a lattice fill is the same for every seed, so realisations "
                      "need particles with fill = \"random\"");
-  if (one_run && (x.settle.realisations > 1 || x.start == FrequencyStart::independent))
+  if (one_run && (x.settle.max_realisations > 1 || x.start == FrequencyStart::independent))
     throw InputError(deck.where(one_run), one_run,
-                     "not with settle.realisations > 1 or start = \"independent\": it follows "
-                     "one continuous run");
+                     "not with settle.realisations > 1, settle.max_realisations > 1 or start = "
+                     "\"independent\": it follows one continuous run");
 }
 
 Deck read_deck(const toml::table& root, const std::string& text, const std::string& path) {
@@ -1063,6 +1109,8 @@ Deck with_snapshots(Deck deck, double every) {
   // Resolved again with the snapshots on, as if the deck had asked for them.
   if (!deck.positions.count("excitation.settle.realisations"))
     deck.excitation.settle.realisations = 0;
+  if (!deck.positions.count("excitation.settle.max_realisations"))
+    deck.excitation.settle.max_realisations = 0;
   try {
     settle_realisations(deck);
   } catch (const InputError& e) {

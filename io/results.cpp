@@ -7,7 +7,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -232,10 +234,28 @@ std::vector<char> file_image(const std::string& file, const Results& r, bool com
     GroupWriter(h5file.get(), "/timeseries", file).table(r.timeseries, [](auto& t, auto&& f) {
       timeseries_columns(t, f);
     });
-  if (!r.frf.frequency.empty())
-    GroupWriter(h5file.get(), "/frf", file).table(r.frf, [](auto& t, auto&& f) {
-      frf_columns(t, f);
-    });
+  if (!r.frf.frequency.empty()) {
+    GroupWriter frf(h5file.get(), "/frf", file);
+    frf.table(r.frf, [](auto& t, auto&& f) { frf_columns(t, f); });
+    const FrfPeak peak = frf_peak(r.frf, r.fills);
+    const double nan = std::nan("");
+    const std::pair<const char*, double> attributes[] = {
+        {"peak_amplitude", peak.found ? peak.amplitude : nan},
+        {"peak_amplitude_ci", peak.found ? peak.amplitude_ci : nan},
+        {"peak_frequency", peak.found ? peak.frequency : nan},
+        {"peak_upper", peak.found ? peak.upper : nan},
+        {"peak_sweep", peak.found ? double(peak.sweep) : nan}};
+    for (const auto& [name, value] : attributes)
+      write_attribute(frf.id(), name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value, file, "/frf");
+    if (!r.fills.frequency.empty())
+      GroupWriter(frf.id(), "/frf/fills", file).table(r.fills, [](auto& t, auto&& f) {
+        fill_columns(t, f);
+      });
+    if (!r.branch_means.frequency.empty())
+      GroupWriter(frf.id(), "/frf/branch_means", file).table(r.branch_means, [](auto& t, auto&& f) {
+        branch_columns(t, f);
+      });
+  }
   if (!r.prescribed.frequency.empty())
     GroupWriter(h5file.get(), "/prescribed", file).table(r.prescribed, [](auto& t, auto&& f) {
       prescribed_columns(t, f);
@@ -544,6 +564,12 @@ Results read_file(const std::string& file) {
              [&](hid_t, const GroupReader& g) { timeseries_columns(r.timeseries, read_all(g)); });
   read_group(f, "/frf", file,
              [&](hid_t, const GroupReader& g) { frf_columns(r.frf, read_all(g)); });
+  if (!r.frf.frequency.empty()) {
+    read_group(f, "/frf/fills", file,
+               [&](hid_t, const GroupReader& g) { fill_columns(r.fills, read_all(g)); });
+    read_group(f, "/frf/branch_means", file,
+               [&](hid_t, const GroupReader& g) { branch_columns(r.branch_means, read_all(g)); });
+  }
   read_group(f, "/prescribed", file,
              [&](hid_t, const GroupReader& g) { prescribed_columns(r.prescribed, read_all(g)); });
   read_group(f, "/periods", file,
@@ -590,6 +616,27 @@ Results read_file(const std::string& file) {
 }
 
 }  // namespace
+
+FrfPeak frf_peak(const FrfTable& frf, const FillTable& fills) {
+  FrfPeak peak;
+  for (std::size_t i = 0; i < frf.frequency.size(); ++i) {
+    const bool result = i < frf.result.size() ? frf.result[i] > 0 : frf.converged[i] != 0;
+    if (!result || (peak.found && frf.amplitude[i] <= peak.amplitude)) continue;
+    peak.found = true;
+    peak.amplitude = frf.amplitude[i];
+    peak.amplitude_ci = frf.amplitude_ci[i];
+    peak.frequency = frf.frequency[i];
+    peak.sweep = i < frf.sweep.size() ? frf.sweep[i] : 1;
+  }
+  // The highest single fill at a result point; a file without fills: the highest mean.
+  peak.upper = peak.amplitude;
+  for (std::size_t k = 0; k < fills.frequency.size(); ++k)
+    for (std::size_t i = 0; i < frf.frequency.size(); ++i)
+      if (frf.frequency[i] == fills.frequency[k] && frf.sweep[i] == fills.sweep[k] &&
+          frf.result[i] > 0)
+        peak.upper = std::max(peak.upper, fills.amplitude[k]);
+  return peak;
+}
 
 OutputLock::OutputLock(const std::string& path) : file_(path + ".lock") {
   // Locked, and still the file at that name: a lock taken on a file that the previous holder

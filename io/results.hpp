@@ -41,31 +41,49 @@ inline constexpr const char* kIntervalKinds =
     "realisations that agree, their intervals pooled; 2 realisations that disagree (coexisting "
     "regimes of the bed), the Student-t spread of their means";
 
-struct FrfTable {  // one row per stepped-sine frequency
+// /frf: one row per stepped-sine point (frequency and sweep). A point's result is the
+// ensemble of its fills (random packings of the same damper): the mean over the fills with
+// its 95 % interval, where one fill lies (amplitude_spread), and its branches.
+struct FrfTable {
   std::vector<double> frequency, amplitude, amplitude_ci, phase, phase_ci, rms, peak;
   std::vector<int> periods, periods_discarded, converged, realisations, interval;
   std::vector<double> dissipated_energy, dissipated_energy_ci, dissipated_normal,
       dissipated_tangential, dissipated_rolling;
+  std::vector<int> sweep, result, branches;
+  std::vector<double> amplitude_spread, phase_spread;
 };
 template <class T, class F>
 void frf_columns(T& t, F&& f) {
   f("frequency", t.frequency, "Hz", "excitation frequency");
+  f("sweep", t.sweep, "1", "+1 sweeping up, -1 sweeping down (excitation.direction)");
   f("amplitude", t.amplitude, "m",
-    "first-harmonic displacement amplitude of the mean over the stationary periods (with "
-    "realisations > 1, the mean of the realisations' amplitudes)");
-  f("amplitude_ci", t.amplitude_ci, "m", "95 % half-width of amplitude (its kind: interval)");
+    "first-harmonic displacement amplitude: the mean over the fills of each fill's mean over "
+    "its stationary periods");
+  f("amplitude_ci", t.amplitude_ci, "m",
+    "95 % half-width of amplitude, the ensemble mean (its kind: interval)");
+  f("amplitude_spread", t.amplitude_spread, "m",
+    "95 % prediction half-width over the fills: where one more fill (one damper of this "
+    "design) would lie; NaN with a single fill");
   f("phase", t.phase, "rad",
     "phase of the first harmonic against the input sin(angle): x = amplitude sin(angle + "
-    "phase) (with realisations > 1, the mean of their phases)");
+    "phase), the mean over the fills");
   f("phase_ci", t.phase_ci, "rad", "95 % half-width of phase (as amplitude_ci)");
+  f("phase_spread", t.phase_spread, "rad", "95 % prediction half-width of phase over the fills");
+  f("result", t.result, "1",
+    "0 not a result (a fill not settled on its own, or the ensemble mean amplitude not known to "
+    "settle.tolerance with settle.max_realisations fills), 1 one state (the ensemble mean "
+    "amplitude known to the tolerance), 2 several branches (each branch's mean amplitude known "
+    "to the tolerance; the ensemble mean carries its wide interval)");
+  f("branches", t.branches, "1",
+    "distinct states among the fills (fills linked when their amplitudes agree within "
+    "settle.tolerance or their own intervals; /frf/branch_means)");
   f("rms", t.rms, "m", "RMS displacement over the stationary periods");
   f("peak", t.peak, "m", "largest |displacement| over the stationary periods");
   f("periods", t.periods, "1", "periods run at this frequency (per realisation, the largest)");
   f("periods_discarded", t.periods_discarded, "1",
     "warm-up periods left out of the means (MSER truncation; largest over the realisations)");
-  f("converged", t.converged, "1",
-    "1 when the means are stationary and known to settle.tolerance, else 0 (not a result)");
-  f("realisations", t.realisations, "1", "independent runs (fill seeds) behind the point");
+  f("converged", t.converged, "1", "1 when the point is a result (result > 0), else 0");
+  f("realisations", t.realisations, "1", "fills (fill seeds) behind the point");
   f("interval", t.interval, "1", kIntervalKinds);
   f("dissipated_energy", t.dissipated_energy, "J",
     "energy the containers put into the particles per period (= dissipated in them when "
@@ -76,6 +94,56 @@ void frf_columns(T& t, F&& f) {
     "per period, friction and tangential damping");
   f("dissipated_rolling", t.dissipated_rolling, "J", "per period, rolling resistance");
 }
+
+// /frf/fills: every fill's own value at every point.
+struct FillTable {
+  std::vector<double> frequency, amplitude, amplitude_ci, phase, phase_ci;
+  std::vector<int> sweep, realisation, branch, periods, converged;
+};
+template <class T, class F>
+void fill_columns(T& t, F&& f) {
+  f("frequency", t.frequency, "Hz", "excitation frequency");
+  f("sweep", t.sweep, "1", "+1 sweeping up, -1 down");
+  f("realisation", t.realisation, "1", "fill (seed offset), from 0");
+  f("branch", t.branch, "1", "the fill's branch at this point, from 0 (highest amplitude)");
+  f("amplitude", t.amplitude, "m", "the fill's mean first-harmonic amplitude");
+  f("amplitude_ci", t.amplitude_ci, "m", "its 95 % half-width from batch means");
+  f("phase", t.phase, "rad", "the fill's mean phase");
+  f("phase_ci", t.phase_ci, "rad", "its 95 % half-width");
+  f("periods", t.periods, "1", "periods the fill ran at this point");
+  f("converged", t.converged, "1", "1 when the fill settled on its own");
+}
+
+// /frf/branch_means: each branch of each point.
+struct BranchTable {
+  std::vector<double> frequency, share, share_low, share_high, amplitude, amplitude_ci, phase,
+      phase_ci;
+  std::vector<int> sweep, branch, fills;
+};
+template <class T, class F>
+void branch_columns(T& t, F&& f) {
+  f("frequency", t.frequency, "Hz", "excitation frequency");
+  f("sweep", t.sweep, "1", "+1 sweeping up, -1 down");
+  f("branch", t.branch, "1", "branch, from 0 (highest amplitude)");
+  f("fills", t.fills, "1", "fills in the branch");
+  f("share", t.share, "1", "fraction of the point's fills in the branch");
+  f("share_low", t.share_low, "1", "lower end of the 95 % Wilson score interval of share");
+  f("share_high", t.share_high, "1", "upper end of that interval");
+  f("amplitude", t.amplitude, "m", "mean amplitude of the branch's fills");
+  f("amplitude_ci", t.amplitude_ci, "m", "its 95 % half-width");
+  f("phase", t.phase, "rad", "mean phase of the branch's fills");
+  f("phase_ci", t.phase_ci, "rad", "its 95 % half-width");
+}
+
+// The headline of an FRF, over every result point (/frf attributes, the run's summary line and
+// a sweep's summary.csv all take it from here): the highest ensemble mean amplitude with its
+// interval and frequency, and the highest single fill at a result point. NaN without results.
+struct FrfPeak {
+  double amplitude = 0, amplitude_ci = 0, frequency = 0, upper = 0;
+  int sweep = 0;
+  bool found = false;
+};
+FrfPeak frf_peak(const FrfTable& frf, const FillTable& fills);
 
 struct PrescribedTable {  // one row per prescribed-motion frequency
   std::vector<double> frequency, dissipated_power, dissipated_power_ci, force_amplitude,
@@ -173,6 +241,8 @@ struct Results {
   std::map<std::string, double> meta_numbers;
   TimeSeries timeseries;
   FrfTable frf;
+  FillTable fills;           // /frf/fills
+  BranchTable branch_means;  // /frf/branch_means
   PrescribedTable prescribed;
   PeriodTable periods;  // the per-period harmonics behind /frf or /prescribed
   std::optional<EnergySeries> energy;

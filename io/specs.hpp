@@ -66,13 +66,17 @@ struct ContactSpec {
 // When a frequency's response counts as steady (src/steady_state.hpp): its per-period first
 // harmonics, after the warm-up is discarded, show no relevant drift and their mean is known to
 // `tolerance` (95 % half-width relative to the amplitude; the phase's half-width in rad).
+// Fills a point of a random fill may grow to by default (settle.max_realisations).
+inline constexpr int kDefaultMaxFills = 4;
+
 struct SettleSpec {
-  int min_periods = 10;     // never converged before this many periods
-  int max_periods = 400;    // a frequency stops here, converged or not
-  double tolerance = 2e-2;  // relative 95 % half-width of the first-harmonic amplitude
-  int batches = 4;          // batch means an interval needs
-  int average_periods = 0;  // 0: the stationary periods found; N: the last N periods
-  int realisations = 1;     // independent runs (fill seeds seed, seed+1, ...) per frequency
+  int min_periods = 10;      // never converged before this many periods
+  int max_periods = 400;     // a frequency stops here, converged or not
+  double tolerance = 2e-2;   // relative 95 % half-width of the first-harmonic amplitude
+  int batches = 4;           // batch means an interval needs
+  int average_periods = 0;   // 0: the stationary periods found; N: the last N periods
+  int realisations = 1;      // fills (fill seeds seed, seed+1, ...) a point starts with
+  int max_realisations = 1;  // fills a point may grow to while its ensemble mean is not known
 };
 struct MotionSpec {
   Vec3 axis{1, 0, 0};    // unit
@@ -85,6 +89,8 @@ struct ExcitationSpec {
   ExcitationInput input = ExcitationInput::force;
   double amplitude = 0;             // N, m or m/s^2 according to `input`
   std::vector<double> frequencies;  // Hz, in the order they are run (prescribed: never empty)
+  std::vector<int> sweeps;          // per frequency: +1 sweeping up, -1 down (direction "both":
+                                    // the list up, then down from the top again)
   SettleSpec settle;
   FrequencyStart start = FrequencyStart::predicted;  // stepped_sine (prescribed: carried)
   double frequency = 0;                              // Hz, `sine`

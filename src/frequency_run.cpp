@@ -222,13 +222,13 @@ Stationary FrequencyRun::judge() const {
       o.tracker.series(o.prescribed ? &PeriodSummary::force : &PeriodSummary::displacement);
   const std::vector<std::complex<double>> series(all.begin() + o.settled_from, all.end());
   const int n = static_cast<int>(series.size());
-  // With R realisations the point's interval is over their means, about sqrt(R) narrower
-  // than each run's own.
+  // Each fill settles on its own to the tolerance: its value is one member of the point's
+  // ensemble, and one fill can be a branch of its own (src/steady_state.hpp).
   // A fixed run is judged once, on what it has: an interval from two batches is wide but
   // says what the periods show.
-  const SteadyStateCriteria criteria{
-      settle.tolerance * std::sqrt(double(settle.realisations)), settle.min_periods,
-      o.fixed ? std::min(settle.batches, 2) : settle.batches, !o.fixed};
+  const SteadyStateCriteria criteria{settle.tolerance, settle.min_periods,
+                                     o.fixed ? std::min(settle.batches, 2) : settle.batches,
+                                     !o.fixed};
   Stationary s = analyse_periods(
       series, criteria, settle.average_periods > 0 ? std::max(0, n - settle.average_periods) : -1);
   s.periods += o.settled_from;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -175,88 +176,99 @@ FrequencyPoint unpack(const std::vector<double>& v) {
   return p;
 }
 
-// The verdict on one frequency from its runs (realisations). With one run the intervals are
-// its batch-means intervals; with several, combine_runs() pools them when the runs agree and
-// takes the spread of their means when they do not (interval kind 1 and 2). The point is
-// converged when every run is stationary and the combined interval meets the tolerance.
-struct PointVerdict {
-  double size = 0, amplitude_ci = 0, phase = 0, phase_ci = 0;  // m (prescribed: N), rad
-  MeanInterval energy;                                         // J per period
-  int periods = 0, discarded = 0, interval = 0;
-  bool converged = false;
-};
-
-PointVerdict judge_point(const std::vector<FrequencyPoint>& runs,
-                         const ExcitationSpec& excitation) {
-  const SettleSpec& settle = excitation.settle;
-  PointVerdict v;
-  std::complex<double> mean = 0;
-  bool stationary = true;
-  for (const FrequencyPoint& p : runs) {
-    mean += p.judged.mean / double(runs.size());
-    v.periods = std::max(v.periods, p.judged.periods);
-    v.discarded = std::max(v.discarded, p.judged.discarded);
-    stationary = stationary && !p.judged.trend && p.judged.periods >= settle.min_periods;
+// The ensemble of a point's fills (judge_ensemble()). A fixed run asked for no tolerance: it is
+// a result when every fill's periods are stationary, and adds no fills.
+Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const ExcitationSpec& x) {
+  std::vector<FillValue> fills;
+  for (const FrequencyPoint& p : runs)
+    fills.push_back({p.judged.mean, p.judged.amplitude_ci, p.judged.phase_ci, p.judged.batches - 1,
+                     p.judged.converged});
+  Ensemble e = judge_ensemble(fills, x.settle.tolerance);
+  if (fixed_duration(x)) {
+    const bool all =
+        std::all_of(fills.begin(), fills.end(), [](const FillValue& f) { return f.converged; });
+    e.result = !all                  ? PointResult::none
+               : e.branch.size() > 1 ? PointResult::branches
+                                     : PointResult::one_state;
+    e.wants_fills = false;
+    e.reason = all ? "" : "drifting or too short for an interval";
   }
-  // Amplitudes and phases are combined separately: runs in regimes of different phase would
-  // shrink a mean of their complex harmonics below every run's amplitude. Each run's phase is
-  // taken about the direction of that mean.
-  const std::complex<double> along = std::abs(mean) > 0 ? mean / std::abs(mean) : 1.0;
-  std::vector<RunMean> a, q, e;
-  for (const FrequencyPoint& p : runs) {
-    const int dof = p.judged.batches - 1;
-    a.push_back({std::abs(p.judged.mean), p.judged.amplitude_ci, dof});
-    q.push_back({std::arg(std::conj(along) * p.judged.mean), p.judged.phase_ci, dof});
-    e.push_back({p.energy_in.mean, p.energy_in.half_width, dof});
-  }
-  // Fills that agree to within about the tolerance are one state for the question asked.
-  const double tolerance = settle.tolerance;
-  double typical = 0;  // the mean amplitude, the scale of the tolerance
-  for (const RunMean& run : a) typical += run.mean / double(a.size());
-  const Combined amplitude = combine_runs(a, 0.5 * tolerance * typical);
-  const Combined phase = combine_runs(q, 0.5 * tolerance);
-  v.energy = combine_runs(e, 0).interval;
-  v.size = amplitude.interval.mean, v.amplitude_ci = amplitude.interval.half_width;
-  v.phase = std::arg(along * std::polar(1.0, phase.interval.mean));
-  v.phase_ci = std::min(kPi, phase.interval.half_width);
-  v.interval = runs.size() == 1 ? 0 : amplitude.consistent && phase.consistent ? 1 : 2;
-  // A fixed run asked for no tolerance: it is done when every realisation is (frequency_run).
-  v.converged = runs.size() == 1 || fixed_duration(excitation)
-                    ? std::all_of(runs.begin(), runs.end(),
-                                  [](const FrequencyPoint& p) { return p.judged.converged; })
-                    : stationary && v.amplitude_ci <= tolerance * v.size && v.phase_ci <= tolerance;
-  return v;
+  return e;
 }
 
-// One row of /frf or /prescribed (and its /periods) from the runs of one frequency.
-void add_row(Results& out, const std::vector<FrequencyPoint>& runs,
-             const ExcitationSpec& excitation) {
-  const bool prescribed = excitation.kind == ExcitationKind::prescribed;
-  const PointVerdict v = judge_point(runs, excitation);
+// "0.4605 mm +- 0.25 %" (prescribed motion: "force 1.2 N +- 3 %").
+std::string amplitude_text(double size, double half_width, bool prescribed) {
+  std::ostringstream s;
+  s.precision(4);
+  s << (prescribed ? "force " : "") << size * (prescribed ? 1.0 : 1e3)
+    << (prescribed ? " N" : " mm") << " +- " << 100 * half_width / std::max(size, 1e-300) << " %";
+  return s.str();
+}
+
+// One line for the log: a point's ensemble, its branches, and what it is.
+std::string ensemble_text(const Ensemble& e, bool prescribed) {
+  std::ostringstream s;
+  s.precision(4);
+  const GroupMean& m = e.mean;
+  s << m.fills << (m.fills == 1 ? " fill: " : " fills: ")
+    << amplitude_text(m.amplitude.mean, m.amplitude.half_width, prescribed);
+  if (m.fills > 1)
+    s << " (one fill within +- " << 100 * m.amplitude_spread / std::max(m.amplitude.mean, 1e-300)
+      << " %)";
+  s << ", phase " << m.phase.mean << " +- " << m.phase.half_width << " rad";
+  if (e.branch.size() > 1) {
+    s << "; " << e.branch.size() << " branches:";
+    for (const GroupMean& b : e.branch)
+      s << " " << amplitude_text(b.amplitude.mean, b.amplitude.half_width, prescribed) << " at "
+        << b.phase.mean << " rad (" << b.fills << " of " << m.fills << ")";
+  }
+  s << (e.result == PointResult::one_state  ? "; a result"
+        : e.result == PointResult::branches ? "; a result of several branches"
+                                            : "; NOT a result: " + e.reason);
+  return s.str();
+}
+
+// One row of /frf or /prescribed (with its /periods, /frf/fills and /frf/branch_means) from
+// the fills of one point: (fill index, what it measured).
+void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fills, int sweep,
+             const ExcitationSpec& x) {
+  const bool prescribed = x.kind == ExcitationKind::prescribed;
+  std::vector<FrequencyPoint> runs;
+  for (const auto& [r, p] : fills) runs.push_back(p);
+  const Ensemble e = judge_fills(runs, x);
+  const GroupMean& m = e.mean;
+  std::vector<RunMean> energy;
   std::vector<double> rms, dn, dt, dr;
   double peak = 0;
+  int periods = 0, discarded = 0;
   for (const FrequencyPoint& p : runs) {
+    energy.push_back({p.energy_in.mean, p.energy_in.half_width, p.judged.batches - 1});
     rms.push_back(std::sqrt(p.mean.mean_square));
     peak = std::max(peak, p.mean.peak);
     dn.push_back(p.mean.dissipated_normal);
     dt.push_back(p.mean.dissipated_tangential);
     dr.push_back(p.mean.dissipated_rolling);
+    periods = std::max(periods, p.judged.periods);
+    discarded = std::max(discarded, p.judged.discarded);
   }
+  const MeanInterval energy_in = combine_runs(energy, 0).interval;
   auto average = [](const std::vector<double>& values) {
     double s = 0;
-    for (double x : values) s += x;
+    for (double v : values) s += v;
     return s / double(values.size());
   };
   const double frequency = runs[0].frequency;
-  const int realisations = static_cast<int>(runs.size());
-  for (std::size_t r = 0; r < runs.size(); ++r)
-    for (std::size_t k = 0; k < runs[r].periods.size(); ++k) {
-      const PeriodSummary& p = runs[r].periods[k];
+  const int count = static_cast<int>(runs.size());
+  const int interval = count == 1 ? 0 : m.consistent ? 1 : 2;
+  const int converged = e.result != PointResult::none ? 1 : 0;
+  for (const auto& [r, point] : fills)
+    for (std::size_t k = 0; k < point.periods.size(); ++k) {
+      const PeriodSummary& p = point.periods[k];
       PeriodTable& t = out.periods;
       t.frequency.push_back(frequency);
-      t.realisation.push_back(static_cast<int>(r));
+      t.realisation.push_back(r);
       t.period.push_back(static_cast<int>(k));
-      t.stationary.push_back(static_cast<int>(k) >= runs[r].judged.discarded ? 1 : 0);
+      t.stationary.push_back(static_cast<int>(k) >= point.judged.discarded ? 1 : 0);
       t.amplitude.push_back(std::abs(p.displacement));
       t.phase.push_back(std::arg(p.displacement));
       t.force_amplitude.push_back(std::abs(p.force));
@@ -266,39 +278,72 @@ void add_row(Results& out, const std::vector<FrequencyPoint>& runs,
   if (prescribed) {
     PrescribedTable& p = out.prescribed;
     p.frequency.push_back(frequency);
-    p.dissipated_power.push_back(v.energy.mean * frequency);
-    p.dissipated_power_ci.push_back(v.energy.half_width * frequency);
-    p.force_amplitude.push_back(v.size);
-    p.force_amplitude_ci.push_back(v.amplitude_ci);
-    p.force_phase.push_back(v.phase);
-    p.force_phase_ci.push_back(v.phase_ci);
-    p.periods.push_back(v.periods);
-    p.periods_discarded.push_back(v.discarded);
-    p.converged.push_back(v.converged ? 1 : 0);
-    p.realisations.push_back(realisations);
-    p.interval.push_back(v.interval);
+    p.dissipated_power.push_back(energy_in.mean * frequency);
+    p.dissipated_power_ci.push_back(energy_in.half_width * frequency);
+    p.force_amplitude.push_back(m.amplitude.mean);
+    p.force_amplitude_ci.push_back(m.amplitude.half_width);
+    p.force_phase.push_back(m.phase.mean);
+    p.force_phase_ci.push_back(m.phase.half_width);
+    p.periods.push_back(periods);
+    p.periods_discarded.push_back(discarded);
+    p.converged.push_back(converged);
+    p.realisations.push_back(count);
+    p.interval.push_back(interval);
     return;
   }
   FrfTable& f = out.frf;
   f.frequency.push_back(frequency);
-  f.amplitude.push_back(v.size);
-  f.amplitude_ci.push_back(v.amplitude_ci);
-  f.phase.push_back(v.phase);
-  f.phase_ci.push_back(v.phase_ci);
+  f.sweep.push_back(sweep);
+  f.amplitude.push_back(m.amplitude.mean);
+  f.amplitude_ci.push_back(m.amplitude.half_width);
+  f.amplitude_spread.push_back(m.amplitude_spread);
+  f.phase.push_back(m.phase.mean);
+  f.phase_ci.push_back(m.phase.half_width);
+  f.phase_spread.push_back(m.phase_spread);
+  f.result.push_back(static_cast<int>(e.result));
+  f.branches.push_back(static_cast<int>(e.branch.size()));
   f.rms.push_back(average(rms));
   f.peak.push_back(peak);
-  f.periods.push_back(v.periods);
-  f.periods_discarded.push_back(v.discarded);
-  f.converged.push_back(v.converged ? 1 : 0);
-  f.realisations.push_back(realisations);
-  f.interval.push_back(v.interval);
-  f.dissipated_energy.push_back(v.energy.mean);
-  f.dissipated_energy_ci.push_back(v.energy.half_width);
+  f.periods.push_back(periods);
+  f.periods_discarded.push_back(discarded);
+  f.converged.push_back(converged);
+  f.realisations.push_back(count);
+  f.interval.push_back(interval);
+  f.dissipated_energy.push_back(energy_in.mean);
+  f.dissipated_energy_ci.push_back(energy_in.half_width);
   f.dissipated_normal.push_back(average(dn));
   f.dissipated_tangential.push_back(average(dt));
   f.dissipated_rolling.push_back(average(dr));
+  for (std::size_t k = 0; k < fills.size(); ++k) {
+    const auto& [r, p] = fills[k];
+    FillTable& t = out.fills;
+    t.frequency.push_back(frequency);
+    t.sweep.push_back(sweep);
+    t.realisation.push_back(r);
+    t.branch.push_back(e.branch_of[k]);
+    t.amplitude.push_back(std::abs(p.judged.mean));
+    t.amplitude_ci.push_back(p.judged.amplitude_ci);
+    t.phase.push_back(std::arg(p.judged.mean));
+    t.phase_ci.push_back(p.judged.phase_ci);
+    t.periods.push_back(p.judged.periods);
+    t.converged.push_back(p.judged.converged ? 1 : 0);
+  }
+  for (std::size_t b = 0; b < e.branch.size(); ++b) {
+    const GroupMean& g = e.branch[b];
+    BranchTable& t = out.branch_means;
+    t.frequency.push_back(frequency);
+    t.sweep.push_back(sweep);
+    t.branch.push_back(static_cast<int>(b));
+    t.fills.push_back(g.fills);
+    t.share.push_back(g.share);
+    t.share_low.push_back(g.share_low);
+    t.share_high.push_back(g.share_high);
+    t.amplitude.push_back(g.amplitude.mean);
+    t.amplitude_ci.push_back(g.amplitude.half_width);
+    t.phase.push_back(g.phase.mean);
+    t.phase_ci.push_back(g.phase.half_width);
+  }
 }
-
 // Everything that decides a settled bed: a bed file made for other particles is refused.
 std::string bed_fingerprint(const Deck& deck, const Scene& scene) {
   std::ostringstream s;
@@ -328,22 +373,43 @@ std::string bed_fingerprint(const Deck& deck, const Scene& scene) {
   return s.str();
 }
 
-// Runs a deck's excitation on one system, or on several side by side: the realisations (fill
-// seeds seed + r), or with start = "independent" the frequencies; tasks share the machine's
-// cores (`jobs` at a time).
+// Runs a deck's excitation on its fills (realisations: fill seeds seed + r). A point (one
+// frequency of one sweep) starts with settle.realisations fills; while the ensemble mean is
+// not known to the tolerance, fills are added up to settle.max_realisations. In a carried
+// sweep every fill carries its state from one point to the next, so that a fill added at a
+// point first catches up: it runs every earlier point from its own settled bed, to its own
+// criterion, exactly as a fill carried all the way (its values there join those points). With
+// start = "independent" a task is one point, its fills from their own beds, the tasks side by
+// side. Fills run `jobs` at a time; what a fill computes never depends on that schedule.
 class Driver {
  public:
-  Driver(const Deck& deck, std::vector<Scene> scenes, int jobs, bool quiet, std::string dump_path)
+  using SceneMaker = std::function<Scene(int fill)>;
+  Driver(const Deck& deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
+         std::string dump_path)
       : deck_(deck),
-        scenes_(std::move(scenes)),
+        make_scene_(std::move(make_scene)),
         jobs_(jobs),
         quiet_(quiet),
         dump_path_(std::move(dump_path)) {
-    frequencies_ = scenes_.front().frequencies;
-    const std::size_t r = scenes_.size(), f = frequencies_.size();
-    points_.assign(r, std::vector<std::optional<FrequencyPoint>>(f));
-    beds_.resize(r);
-    reports_.resize(r);
+    const ExcitationSpec& x = first.excitation;
+    const bool swept =
+        x.kind == ExcitationKind::stepped_sine || x.kind == ExcitationKind::prescribed;
+    fills_min_ = swept ? x.settle.realisations : 1;
+    fills_max_ = swept && !fixed_duration(x) ? x.settle.max_realisations : fills_min_;
+    frequencies_ = first.frequencies;
+    sweeps_ = x.sweeps;
+    sweeps_.resize(frequencies_.size(), 1);
+    const auto fills = static_cast<std::size_t>(fills_max_), steps = frequencies_.size();
+    scenes_.resize(fills);
+    scenes_[0] = std::make_unique<Scene>(std::move(first));
+    points_.assign(fills, std::vector<std::optional<FrequencyPoint>>(steps));
+    done_.assign(steps, 0);
+    beds_.resize(fills);
+    reports_.resize(fills);
+    runs_.resize(fills);
+    reached_.assign(fills, -1);
+    seen_.resize(fills);
+    bed_once_ = std::make_unique<std::once_flag[]>(fills);
   }
 
   void resume_from(const Results& partial) {
@@ -352,19 +418,24 @@ class Driver {
     results_.energy = partial.energy;
     results_.particles = partial.particles;
     bed_from_file_ = c.count("bed.from_file") > 0;
-    for (std::size_t r = 0; r < scenes_.size(); ++r) {
+    const auto& done = state_values<std::int32_t>(c, "run.done");
+    if (done.size() != done_.size())
+      throw SimulationError("the checkpoint's run.done should hold one flag a frequency");
+    for (std::size_t s = 0; s < done.size(); ++s) done_[s] = done[s] != 0;
+    const auto filled = static_cast<std::size_t>(state_value<std::int32_t>(c, "run.fills"));
+    for (std::size_t r = 0; r < filled && r < beds_.size(); ++r) {
       beds_[r] = get_state(c, "bed.r" + std::to_string(r) + ".");
-      reports_[r] = unpack_report(c, r);
+      if (!beds_[r].empty()) reports_[r] = unpack_report(c, r);
       for (std::size_t i = 0; i < frequencies_.size(); ++i)
         if (const auto it = c.find(point_key(r, i)); it != c.end()) {
           points_[r][i] = unpack(state_values<double>(c, point_key(r, i)));
           unpack_periods(state_values<double>(c, point_key(r, i) + ".periods"), *points_[r][i]);
+          reached_[r] = static_cast<long>(i);
         }
-    }
-    for (std::size_t r = 0; r < scenes_.size(); ++r)
       if (StateArrays state = get_state(c, "task.r" + std::to_string(r) + "."); !state.empty())
         task_states_[r] = std::move(state);
-    if (independent()) {  // realisation 0's segments, by the frequency each sample was taken at
+    }
+    if (independent()) {  // fill 0's segments, by the frequency each sample was taken at
       const TimeSeries& ts = partial.timeseries;
       for (std::size_t j = 0; j < ts.frequency.size(); ++j) {
         const auto at = std::find(frequencies_.begin(), frequencies_.end(), ts.frequency[j]);
@@ -391,16 +462,17 @@ class Driver {
     g_stop_runs = g_interrupted != 0;  // an interrupt before the start stops it at once
     checkpoint_ = checkpoint;
     stop_after_ = stop_after;
-    const ExcitationSpec& x = scenes_.front().excitation;
+    const ExcitationSpec& x = excitation();
     if (x.kind == ExcitationKind::free_decay || x.kind == ExcitationKind::sine) {
       Progress progress(quiet_, 1, 1.0, false);
-      FrequencyRun run(scenes_[0], [&](double f, double done) { progress.update(0, done, f); });
+      FrequencyRun run(scene(0), [&](double f, double done) { progress.update(0, done, f); });
       try {
         reports_[0] = run.settle_bed();
         if (x.kind == ExcitationKind::free_decay) {
           run.run_free_decay();
         } else {
           points_[0][0] = run.run_frequency(x.frequency, FrequencyStart::carried);
+          done_[0] = 1;
         }
       } catch (const SimulationError& e) {
         fail(run, 0, e);
@@ -429,19 +501,38 @@ class Driver {
   static std::string point_key(std::size_t r, std::size_t i) {
     return "point.r" + std::to_string(r) + ".f" + std::to_string(i);
   }
-  bool independent() const {
-    return scenes_.front().excitation.start == FrequencyStart::independent;
+  const ExcitationSpec& excitation() const { return scenes_[0]->excitation; }
+  bool independent() const { return excitation().start == FrequencyStart::independent; }
+  bool prescribed() const { return excitation().kind == ExcitationKind::prescribed; }
+
+  // Fill r's scene, built when it is first needed.
+  const Scene& scene(std::size_t r) {
+    std::lock_guard<std::mutex> lock(scene_mutex_);
+    if (!scenes_[r]) scenes_[r] = std::make_unique<Scene>(make_scene_(static_cast<int>(r)));
+    return *scenes_[r];
   }
 
-  // The /frf (or /prescribed) rows of every frequency all of whose runs have finished, in the
-  // order of the frequency list.
+  // The fills that have run point s, with what they measured.
+  std::vector<std::pair<int, FrequencyPoint>> fills_at(std::size_t s) const {
+    std::vector<std::pair<int, FrequencyPoint>> fills;
+    for (std::size_t r = 0; r < points_.size(); ++r)
+      if (points_[r][s]) fills.emplace_back(static_cast<int>(r), *points_[r][s]);
+    return fills;
+  }
+  // Point s judged on its fills 0..count-1 (the ones it asked for: fills that ran it on their
+  // way to a later point join it only in the rows, so that no decision depends on the order
+  // fills run in), or on all that ran it.
+  Ensemble judge_step(std::size_t s, std::size_t count = SIZE_MAX) const {
+    std::vector<FrequencyPoint> runs;
+    for (const auto& [r, p] : fills_at(s))
+      if (static_cast<std::size_t>(r) < count) runs.push_back(p);
+    return judge_fills(runs, excitation());
+  }
+
+  // The /frf (or /prescribed) rows of every finished point, in the order they are run.
   void add_rows(Results& out) const {
-    for (std::size_t i = 0; i < frequencies_.size(); ++i) {
-      std::vector<FrequencyPoint> runs;
-      for (const auto& per_frequency : points_)
-        if (per_frequency[i]) runs.push_back(*per_frequency[i]);
-      if (runs.size() == points_.size()) add_row(out, runs, scenes_.front().excitation);
-    }
+    for (std::size_t s = 0; s < frequencies_.size(); ++s)
+      if (done_[s]) add_row(out, fills_at(s), sweeps_[s], excitation());
   }
 
   // Adds what `run` did since `seen` (its particle steps and simulated time) to the totals.
@@ -508,11 +599,11 @@ class Driver {
     throw SimulationError(std::string(e.what()) + "\nparticle states written to " + dump_path_);
   }
 
-  // Every realisation's settled bed and its report ("bed.reports": four numbers each), into a
-  // checkpoint or a bed file.
-  void put_beds(StateArrays& c) const {
+  // The settled beds and their reports ("bed.reports": four numbers a fill) of the fills
+  // 0..count-1, into a checkpoint or a bed file.
+  void put_beds(StateArrays& c, std::size_t count) const {
     std::vector<double> reports;
-    for (std::size_t r = 0; r < scenes_.size(); ++r) {
+    for (std::size_t r = 0; r < count; ++r) {
       put_state(c, "bed.r" + std::to_string(r) + ".", beds_[r]);
       reports.insert(reports.end(), {double(reports_[r].ran), double(reports_[r].settled),
                                      reports_[r].time_s, reports_[r].speed});
@@ -526,281 +617,293 @@ class Driver {
     return {v[4 * r] != 0, v[4 * r + 1] != 0, v[4 * r + 2], v[4 * r + 3]};
   }
 
+  // The beds of the first fills (settle.realisations): from bed.file when it holds them (with
+  // any further fills it holds), else settled side by side (and written there).
   void settle_beds(Progress& progress) {
+    const auto first = static_cast<std::size_t>(fills_min_);
     std::vector<std::size_t> missing;
-    for (std::size_t r = 0; r < scenes_.size(); ++r)
+    for (std::size_t r = 0; r < first; ++r)
       if (beds_[r].empty()) missing.push_back(r);
     if (missing.empty()) return;
-    const std::string& file = scenes_.front().bed.file;
-    const std::string fingerprint = bed_fingerprint(deck_, scenes_[0]);
+    const std::string& file = scenes_[0]->bed.file;
+    const std::string fingerprint = bed_fingerprint(deck_, *scenes_[0]);
     if (!file.empty() && std::filesystem::exists(file)) {
       Results saved = read_results(file);
-      if (saved.meta_text["bed_fingerprint"] != fingerprint ||
-          static_cast<std::size_t>(saved.meta_numbers["realisations"]) < scenes_.size())
+      const auto held = static_cast<std::size_t>(saved.meta_numbers["realisations"]);
+      if (saved.meta_text["bed_fingerprint"] != fingerprint || held < first)
         throw InputError(
             deck_.where("bed.file"), "bed.file",
             "'" + file +
                 "' holds a bed settled for other particles, container, "
                 "contact, gravity, dt or realisations; delete it or name another file");
-      for (std::size_t r : missing) {
-        beds_[r] = get_state(saved.checkpoint, "bed.r" + std::to_string(r) + ".");
-        reports_[r] = unpack_report(saved.checkpoint, r);
-      }
+      for (std::size_t r = 0; r < std::min(held, beds_.size()); ++r)
+        if (beds_[r].empty()) {
+          beds_[r] = get_state(saved.checkpoint, "bed.r" + std::to_string(r) + ".");
+          reports_[r] = unpack_report(saved.checkpoint, r);
+        }
       bed_from_file_ = true;
       return;
     }
-    in_parallel(missing.size(), [&](std::size_t k) {
-      const std::size_t r = missing[k];
-      FrequencyRun run(scenes_[r], [&](double f, double done) { progress.update(r, done, f); });
-      try {
-        reports_[r] = run.settle_bed();
-      } catch (const SimulationError& e) {
-        fail(run, r, e);
-      }
-      beds_[r] = run.save();
-      std::lock_guard<std::mutex> lock(mutex_);
-      Seen from_start;
-      account(run, from_start);
-    });
+    in_parallel(missing.size(), [&](std::size_t k) { settle_bed(missing[k], progress); });
     if (!file.empty()) {
       Results saved;
       saved.meta_text["bed_fingerprint"] = fingerprint;
       saved.meta_text["deck"] = deck_.text;
-      saved.meta_numbers["realisations"] = double(scenes_.size());
-      put_beds(saved.checkpoint);
+      saved.meta_numbers["realisations"] = double(first);
+      put_beds(saved.checkpoint, first);
       write_results(file, saved, true);
     }
   }
+  void settle_bed(std::size_t r, Progress& progress) {
+    FrequencyRun run(scene(r), [&](double f, double done) { progress.update(r, done, f); });
+    BedReport report;
+    try {
+      report = run.settle_bed();
+    } catch (const SimulationError& e) {
+      fail(run, r, e);
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    reports_[r] = report;
+    beds_[r] = run.save();
+    Seen from_start;
+    account(run, from_start);
+  }
+  // Fill r's bed, settled the first time a fill beyond the first ones needs it.
+  void ensure_bed(std::size_t r, Progress& progress) {
+    std::call_once(bed_once_[r], [&] {
+      if (beds_[r].empty()) settle_bed(r, progress);
+    });
+  }
 
-  // Runs the frequencies. Realisations run side by side and in step: each frequency's runs are
-  // judged together (run_point()) before any goes on. With start = "independent" one task is
-  // one frequency, its realisations run in turn, and the tasks run side by side.
   void run_tasks() {
-    const std::size_t runs_count = scenes_.size();
-    std::vector<std::size_t> todo;  // frequencies with a run still to do
-    for (std::size_t i = 0; i < frequencies_.size(); ++i)
-      for (std::size_t r = 0; r < runs_count; ++r)
-        if (!points_[r][i]) {
-          todo.push_back(i);
-          break;
-        }
-    double total = 0;
-    for (const auto& per_run : points_)
-      for (const auto& point : per_run) total += point ? 0.0 : 1.0;
-    const std::size_t lines = independent() ? todo.size() : runs_count;
-    Progress progress(quiet_, std::max(lines, runs_count), std::max(total, 1.0),
-                      !fixed_duration(scenes_.front().excitation));
+    std::size_t todo = 0;
+    for (char d : done_) todo += d ? 0 : 1;
+    // Progress: a slot per fill (carried) or per point (independent); the first fills' work.
+    const std::size_t slots = independent() ? frequencies_.size() : beds_.size();
+    const double total = double(todo) * (independent() ? fills_min_ : 1);
+    Progress progress(quiet_, std::max(slots, beds_.size()), std::max(total, 1.0),
+                      !fixed_duration(excitation()));
     progress_ = &progress;
     settle_beds(progress);
-    if (independent()) {
-      in_parallel(todo.size(), [&](std::size_t k) {
-        const std::size_t i = todo[k];
-        double done = 0;
-        std::vector<std::unique_ptr<FrequencyRun>> owned(runs_count);
-        std::vector<FrequencyRun*> runs(runs_count, nullptr);
-        std::vector<Seen> seen(runs_count);
-        for (std::size_t r = 0; r < runs_count; ++r) {
-          if (points_[r][i]) continue;
-          owned[r] = std::make_unique<FrequencyRun>(
-              scenes_[r], [&, k](double f, double d) { progress.update(k, done + d, f); });
-          owned[r]->restore(beds_[r]);
-          runs[r] = owned[r].get();
-          seen[r] = {runs[r]->system().particle_steps(), runs[r]->system().time()};
-        }
-        // Progress: the runs of round 0 done; the later rounds count as the last run's.
-        const Each in_turn = [&](std::size_t count, const std::function<void(std::size_t)>& f) {
-          for (std::size_t c = 0; c < count; ++c) done = std::max(done, double(c)), f(c);
-        };
-        finished_points(i, runs, run_point(i, runs, in_turn), seen);
-        const auto ran = std::count_if(runs.begin(), runs.end(), [](auto* run) { return run; });
-        progress.update(k, double(ran), frequencies_[i]);
-      });
-    } else {
-      std::vector<std::unique_ptr<FrequencyRun>> owned(runs_count);
-      std::vector<double> done(runs_count, 0.0);
-      std::vector<Seen> seen(runs_count);
-      for (std::size_t r = 0; r < runs_count; ++r) {
-        owned[r] = std::make_unique<FrequencyRun>(
-            scenes_[r], [&, r](double f, double d) { progress.update(r, done[r] + d, f); });
-        FrequencyRun& run = *owned[r];
-        if (const auto it = task_states_.find(r); it != task_states_.end()) {
-          run.restore(it->second);
-          if (r == 0) run.set_records(results_.timeseries, results_.energy, results_.particles);
-        } else {
-          run.restore(beds_[r]);
-        }
-        seen[r] = {run.system().particle_steps(), run.system().time()};
-      }
-      const Each side_by_side = [&](std::size_t count, const std::function<void(std::size_t)>& f) {
-        in_parallel(count, f);
-      };
-      for (std::size_t i : todo) {
-        std::vector<FrequencyRun*> runs(runs_count, nullptr);
-        for (std::size_t r = 0; r < runs_count; ++r)
-          if (!points_[r][i]) runs[r] = owned[r].get();
-        const std::vector<FrequencyPoint> got = run_point(i, runs, side_by_side);
-        for (std::size_t r = 0; r < runs_count; ++r) done[r] += runs[r] ? 1.0 : 0.0;
-        finished_points(i, runs, got, seen);
-        if (stopped_) break;
-      }
-    }
+    if (independent())
+      run_independent(progress);
+    else
+      run_carried(progress);
     progress.finish();
   }
 
-  // Runs frequency i on the realisations given in `runs` (null where the point is known) and
-  // returns every realisation's point. Each run first goes until its own interval is within
-  // tolerance x sqrt(R). The point is then judged on all of them (judge_point()): runs that
-  // stopped early on narrow intervals of their own can still disagree, when the bed wanders
-  // more slowly than their periods showed (Saeki deck, 14 Hz: the phase moves 0.05 rad over
-  // 70-period stretches). While the point is not converged and runs have periods left, every
-  // run goes on by half the longest run's periods (at least min_periods) and the point is
-  // judged again, until the runs' means stop moving (still_moving()). Rounds of whole runs keep the
-  // result independent of how the runs are scheduled.
-  using Each = std::function<void(std::size_t, const std::function<void(std::size_t)>&)>;
-  std::vector<FrequencyPoint> run_point(std::size_t i, const std::vector<FrequencyRun*>& runs,
-                                        const Each& each) {
-    const ExcitationSpec& x = scenes_.front().excitation;
-    std::vector<FrequencyPoint> got(runs.size());
-    std::vector<std::size_t> active;
-    for (std::size_t r = 0; r < runs.size(); ++r) {
-      if (runs[r])
-        active.push_back(r);
-      else
-        got[r] = *points_[r][i];  // from a checkpoint written before the others finished
-    }
-    auto round = [&](const std::function<FrequencyPoint(std::size_t, FrequencyRun&)>& work) {
-      each(active.size(), [&](std::size_t k) {
-        const std::size_t r = active[k];
-        try {
-          got[r] = work(r, *runs[r]);
-        } catch (const SimulationError& e) {
-          fail(*runs[r], r, e);
-        }
-      });
-    };
-    // Each run to its own criterion, then on to the longest one's periods, so that the point is
-    // judged on runs of one length. Side by side, a run that is done keeps up with the runs
-    // still going instead of waiting for them: the periods it runs are the same either way.
-    enum : int { kWaiting, kOnItsOwn, kDone };
-    std::vector<std::atomic<int>> stage(runs.size());
-    auto longest_going = [&](std::size_t r) {  // -1 when no other run is on its own
-      int longest = -1;
-      for (std::size_t q : active)
-        if (q != r && stage[q] == kOnItsOwn)
-          longest = std::max(longest, runs[q]->periods_running());
-      return longest;
-    };
-    round([&](std::size_t r, FrequencyRun& run) {
-      stage[r] = kOnItsOwn;
-      FrequencyPoint point;
-      try {
-        point = run.run_frequency(frequencies_[i], x.start);
-      } catch (...) {
-        stage[r] = kDone;
-        throw;
-      }
-      stage[r] = kDone;
-      int periods = point.judged.periods, kept_up = 0;
-      for (int target; (target = longest_going(r)) >= 0;) {
-        if (g_stop_runs) throw Interrupted();
-        if (periods < target && run.periods_left() > 0)
-          run.run_period(), ++periods, ++kept_up;
-        else
-          std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
-      return kept_up > 0 ? run.extend(0) : point;  // judged once, on all its periods
-    });
-    int longest = 0;
-    for (std::size_t r : active) longest = std::max(longest, got[r].judged.periods);
-    if (std::any_of(active.begin(), active.end(),
-                    [&](std::size_t r) { return got[r].judged.periods < longest; }))
-      round([&](std::size_t r, FrequencyRun& run) {
-        return run.extend(longest - got[r].judged.periods);
-      });
-    if (fixed_duration(x)) return got;
-    std::vector<FrequencyPoint> before;
-    for (PointVerdict v = judge_point(got, x); !v.converged; v = judge_point(got, x)) {
-      bool left = false;
-      for (std::size_t r : active) left = left || runs[r]->periods_left() > 0;
-      if (!left) break;
-      if (!before.empty() && !still_moving(before, got)) {
-        progress_->say("f = " + number(frequencies_[i]) +
-                       " Hz: each realisation holds still, apart from the others (fills that "
-                       "differ): more periods would not bring them together");
+  // How many fills the point should have next: enough for a Student-t interval of the spread
+  // seen (t(R-1) s / sqrt(R)) to meet the tolerance, at least two more, at most twice as many.
+  int more_fills(const Ensemble& e, int now) const {
+    const double tolerance = excitation().settle.tolerance;
+    const GroupMean& m = e.mean;
+    const double scale = now > 1 ? student_t975(now - 1) * std::sqrt(1 + 1.0 / now) : 0;
+    const double sa = scale > 0 ? m.amplitude_spread / scale : 0;
+    const double sp = scale > 0 ? m.phase_spread / scale : 0;
+    int need = fills_max_;
+    for (int r = now + 1; r <= fills_max_; ++r) {
+      const double t = student_t975(r - 1) / std::sqrt(double(r));
+      if (scale > 0 && t * sa <= tolerance * m.amplitude.mean && t * sp <= tolerance) {
+        need = r;
         break;
       }
-      const int more = std::max(x.settle.min_periods, v.periods / 2);
-      progress_->say(
-          "f = " + number(frequencies_[i]) + " Hz: " +
-          (v.interval == 2 ? "the realisations disagree" : "not converged over the realisations") +
-          "; each runs up to " + std::to_string(more) + " more periods");
-      before = got;
-      round([&](std::size_t, FrequencyRun& run) { return run.extend(more); });
     }
-    return got;
+    return std::min(fills_max_, std::max(now + 2, std::min(need, 2 * now)));
+  }
+  std::string point_name(std::size_t s) const {
+    bool both = false;
+    for (int sweep : sweeps_) both = both || sweep != sweeps_[0];
+    return "f = " + number(frequencies_[s]) + " Hz" +
+           (both ? (sweeps_[s] > 0 ? " (up)" : " (down)") : "");
+  }
+  void say_adding(std::size_t s, const Ensemble& e, int now, int next) {
+    progress_->say(point_name(s) + ": " + ensemble_text(e, prescribed()) + "; " +
+                   std::to_string(next - now) + " more fills (" + std::to_string(next) + " of " +
+                   std::to_string(fills_max_) + ")");
   }
 
-  // Whether a run that ran on is not settled on its own terms (drifting, or its interval too
-  // wide) or its mean moved over the new periods by more than its interval: runs that each
-  // hold still and still disagree are fills that differ (a spread interval), which more
-  // periods would not change.
-  static bool still_moving(const std::vector<FrequencyPoint>& before,
-                           const std::vector<FrequencyPoint>& after) {
-    for (std::size_t r = 0; r < after.size(); ++r) {
-      const Stationary &a = before[r].judged, &b = after[r].judged;
-      if (b.periods == a.periods) continue;  // it had no periods left
-      if (!b.converged || std::fabs(std::abs(b.mean) - std::abs(a.mean)) > b.amplitude_ci ||
-          std::fabs(std::arg(b.mean * std::conj(a.mean))) > b.phase_ci)
-        return true;
-    }
-    return false;
-  }
-
-  // Records the finished points of frequency i (one per run in `runs`), tells the log, and
-  // writes a checkpoint while points remain.
-  void finished_points(std::size_t i, const std::vector<FrequencyRun*>& runs,
-                       const std::vector<FrequencyPoint>& got, std::vector<Seen>& seen) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++finished_;
-    for (std::size_t r = 0; r < runs.size(); ++r) {
-      if (!runs[r]) continue;
-      const FrequencyRun& run = *runs[r];
-      points_[r][i] = got[r];
-      account(run, seen[r]);
-      if (r == 0) {
-        if (independent()) {
-          append_segment(run.timeseries(), i);
-        } else {
-          results_.timeseries = run.timeseries();
-          results_.energy = run.energy();
-          results_.particles = run.particles();
+  // A carried sweep. Every fill is a sweep of its own, so fills run independently, `jobs_` at
+  // a time: the first fills (settle.realisations) through every point; a point is judged once
+  // each fill it wants has run it, and when it wants more, fills beyond the first are sent to
+  // it (catching up from their beds through the points before). Which fill a worker takes
+  // changes only the order of the work, never what a fill computes.
+  void run_carried(Progress& progress) {
+    const auto last = static_cast<long>(frequencies_.size()) - 1;
+    want_.assign(frequencies_.size(), fills_min_);
+    target_.assign(beds_.size(), -1);
+    busy_.assign(beds_.size(), 0);
+    for (std::size_t r = 0; r < static_cast<std::size_t>(fills_min_); ++r) target_[r] = last;
+    std::unique_lock<std::mutex> lock(mutex_);
+    judge_ready();
+    std::exception_ptr failure;
+    std::condition_variable changed;
+    auto worker = [&] {
+      std::unique_lock<std::mutex> held(mutex_);
+      for (;;) {
+        if (g_stop_runs) return;
+        // The fill furthest behind first: points then finish about in order.
+        std::size_t pick = beds_.size();
+        bool running = false;
+        for (std::size_t r = 0; r < beds_.size(); ++r) {
+          running = running || busy_[r];
+          if (!busy_[r] && reached_[r] < target_[r] &&
+              (pick == beds_.size() || reached_[r] < reached_[pick]))
+            pick = r;
         }
+        if (pick == beds_.size()) {
+          if (!running) return;  // nothing left to run, and nothing running could add any
+          changed.wait(held);
+          continue;
+        }
+        busy_[pick] = 1;
+        held.unlock();
+        try {
+          run_next_point(pick, progress);
+        } catch (...) {
+          held.lock();
+          if (!failure && !stopped_) failure = std::current_exception();
+          g_stop_runs = true;
+          busy_[pick] = 0;
+          changed.notify_all();
+          return;
+        }
+        held.lock();
+        busy_[pick] = 0;
+        judge_ready();
+        changed.notify_all();
       }
-      progress_->say(describe(got[r], r));
+    };
+    lock.unlock();
+    std::vector<std::thread> threads;
+    for (int w = 1; w < jobs_; ++w) threads.emplace_back(worker);
+    worker();
+    for (auto& t : threads) t.join();
+    if (failure) std::rethrow_exception(failure);
+    if (g_stop_runs && !stopped_) throw Interrupted();
+  }
+
+  // Judges every point whose wanted fills have all run it (mutex_ held): finished, or more
+  // fills sent to it.
+  void judge_ready() {
+    for (std::size_t s = 0; s < frequencies_.size(); ++s) {
+      if (done_[s]) continue;
+      bool ready = true;
+      for (std::size_t r = 0; r < static_cast<std::size_t>(want_[s]); ++r)
+        ready = ready && points_[r][s].has_value();
+      if (!ready) continue;
+      const Ensemble e = judge_step(s, static_cast<std::size_t>(want_[s]));
+      if (e.wants_fills && want_[s] < fills_max_) {
+        const int next = more_fills(e, want_[s]);
+        say_adding(s, e, want_[s], next);
+        for (auto r = static_cast<std::size_t>(want_[s]); r < static_cast<std::size_t>(next); ++r)
+          target_[r] = std::max(target_[r], static_cast<long>(s));
+        want_[s] = next;
+        continue;
+      }
+      finished_step(s);
+      if (stopped_) return;
     }
-    if (got.size() > 1) {  // the point, as /frf gives it (a run's own verdict is only a part)
-      const PointVerdict v = judge_point(got, scenes_.front().excitation);
-      std::ostringstream s;
-      s.precision(4);
-      s << "f = " << frequencies_[i] << " Hz, " << got.size()
-        << " realisations: " << amplitude_text(v.size, v.amplitude_ci) << ", phase " << v.phase
-        << " +- " << v.phase_ci << " rad" << (v.interval == 2 ? " (their spread)" : "")
-        << (v.converged ? ", converged" : ", NOT converged");
-      progress_->say(s.str());
+  }
+
+  // Runs fill r's next point (a fill's first from its settled bed) and records it.
+  void run_next_point(std::size_t r, Progress& progress) {
+    if (!runs_[r]) {
+      ensure_bed(r, progress);
+      std::lock_guard<std::mutex> lock(mutex_);  // task_states_ and results_ are shared
+      runs_[r] = std::make_unique<FrequencyRun>(scene(r), [this, r, &progress](double f, double d) {
+        progress.update(r, double(reached_[r] + 1) + d, f);
+      });
+      FrequencyRun& run = *runs_[r];
+      if (const auto it = task_states_.find(r); it != task_states_.end()) {
+        run.restore(it->second);
+        if (r == 0) run.set_records(results_.timeseries, results_.energy, results_.particles);
+      } else {
+        run.restore(beds_[r]);
+      }
+      seen_[r] = {run.system().particle_steps(), run.system().time()};
     }
-    std::size_t remaining = 0;
-    for (const auto& per_frequency : points_)
-      for (const auto& p : per_frequency) remaining += !p;
-    if (remaining == 0 || !checkpoint_) return;
-    if (!independent())
-      for (std::size_t r = 0; r < runs.size(); ++r)
-        if (runs[r]) task_states_[r] = runs[r]->save();
+    FrequencyRun& run = *runs_[r];
+    const auto k = static_cast<std::size_t>(reached_[r] + 1);
+    FrequencyPoint point;
+    try {
+      point = run.run_frequency(frequencies_[k], excitation().start);
+    } catch (const SimulationError& e) {
+      fail(run, r, e);
+    }
+    StateArrays state = checkpoint_ ? run.save() : StateArrays{};
+    std::lock_guard<std::mutex> lock(mutex_);
+    points_[r][k] = std::move(point);
+    reached_[r] = static_cast<long>(k);
+    if (checkpoint_) task_states_[r] = std::move(state);
+    account(run, seen_[r]);
+    if (r == 0) {
+      results_.timeseries = run.timeseries();
+      results_.energy = run.energy();
+      results_.particles = run.particles();
+    }
+    const bool catching_up = r >= static_cast<std::size_t>(want_[k]);
+    progress_->say(describe(*points_[r][k], r) + (catching_up ? " (catching up)" : ""));
+  }
+
+  // Independent points side by side, each point's fills in turn from their settled beds.
+  void run_independent(Progress& progress) {
+    std::vector<std::size_t> todo;
+    for (std::size_t s = 0; s < frequencies_.size(); ++s)
+      if (!done_[s]) todo.push_back(s);
+    in_parallel(todo.size(), [&](std::size_t k) {
+      const std::size_t s = todo[k];
+      double done = 0;
+      for (int want = fills_min_;;) {
+        for (std::size_t r = 0; r < static_cast<std::size_t>(want); ++r, done += 1) {
+          if (points_[r][s]) continue;
+          ensure_bed(r, progress);
+          FrequencyRun run(scene(r),
+                           [&, k](double f, double d) { progress.update(k, done + d, f); });
+          run.restore(beds_[r]);
+          Seen seen{run.system().particle_steps(), run.system().time()};
+          FrequencyPoint point;
+          try {
+            point = run.run_frequency(frequencies_[s], excitation().start);
+          } catch (const SimulationError& e) {
+            fail(run, r, e);
+          }
+          std::lock_guard<std::mutex> lock(mutex_);
+          points_[r][s] = std::move(point);
+          account(run, seen);
+          if (r == 0) append_segment(run.timeseries(), s);
+          progress_->say(describe(*points_[r][s], r));
+        }
+        const Ensemble e = judge_step(s);
+        if (!e.wants_fills || want >= fills_max_) break;
+        const int next = more_fills(e, want);
+        say_adding(s, e, want, next);
+        want = next;
+      }
+      std::lock_guard<std::mutex> lock(mutex_);
+      finished_step(s);
+    });
+  }
+
+  // Marks point s finished, tells the log, and writes a checkpoint while points remain
+  // (mutex_ held).
+  void finished_step(std::size_t s) {
+    ++finished_;
+    done_[s] = 1;
+    const Ensemble e = judge_step(s);
+    progress_->say(point_name(s) + ": " + ensemble_text(e, prescribed()));
+    if (std::all_of(done_.begin(), done_.end(), [](char d) { return d != 0; }) || !checkpoint_)
+      return;
+    std::size_t fills = 0;  // fills 0..fills-1 have begun
+    for (std::size_t r = 0; r < beds_.size(); ++r)
+      if (!beds_[r].empty()) fills = r + 1;
     Results snapshot = results_;
-    add_rows(snapshot);  // the finished frequencies are readable (and plottable) in the .partial
+    add_rows(snapshot);  // the finished points are readable (and plottable) in the .partial
     StateArrays& c = snapshot.checkpoint;
-    put_beds(c);
+    put_beds(c, fills);
+    c["run.fills"] = std::vector<std::int32_t>{static_cast<std::int32_t>(fills)};
+    c["run.done"] = std::vector<std::int32_t>(done_.begin(), done_.end());
     if (bed_from_file_) c["bed.from_file"] = std::vector<std::int32_t>{1};
-    for (std::size_t k = 0; k < scenes_.size(); ++k)
+    for (std::size_t k = 0; k < fills; ++k)
       for (std::size_t f = 0; f < frequencies_.size(); ++f)
         if (points_[k][f]) {
           c[point_key(k, f)] = pack(*points_[k][f]);
@@ -819,8 +922,8 @@ class Driver {
     }
   }
 
-  // Independent frequencies: realisation 0's time series, one segment per frequency (each from
-  // the settled bed's time), kept in the order of the frequency list.
+  // Independent frequencies: fill 0's time series, one segment per frequency (each from the
+  // settled bed's time), kept in the order of the frequency list.
   void append_segment(const TimeSeries& segment, std::size_t index) {
     segments_[index] = segment;
     TimeSeries all;
@@ -837,27 +940,17 @@ class Driver {
     results_.timeseries = all;
   }
 
-  // "0.4605 mm +- 0.25 %" (prescribed motion: "force 1.2 N +- 3 %").
-  std::string amplitude_text(double size, double half_width) const {
-    std::ostringstream s;
-    s.precision(4);
-    const bool prescribed = scenes_.front().excitation.kind == ExcitationKind::prescribed;
-    s << (prescribed ? "force " : "") << size * (prescribed ? 1.0 : 1e3)
-      << (prescribed ? " N" : " mm") << " +- " << 100 * half_width / std::max(size, 1e-300) << " %";
-    return s.str();
-  }
-
   std::string describe(const FrequencyPoint& p, std::size_t r) const {
     std::ostringstream s;
     s.precision(4);
     s << "f = " << p.frequency << " Hz";
-    if (scenes_.size() > 1) s << " (realisation " << r + 1 << ")";
-    s << ": " << amplitude_text(std::abs(p.judged.mean), p.judged.amplitude_ci) << ", "
-      << p.judged.periods << " periods (" << p.judged.discarded << " warm-up)";
-    if (fixed_duration(scenes_.front().excitation))
+    if (fills_max_ > 1) s << " (fill " << r + 1 << ")";
+    s << ": " << amplitude_text(std::abs(p.judged.mean), p.judged.amplitude_ci, prescribed())
+      << ", " << p.judged.periods << " periods (" << p.judged.discarded << " warm-up)";
+    if (fixed_duration(excitation()))
       s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
     else
-      s << (p.judged.converged ? ", converged" : ", NOT converged: " + p.judged.reason);
+      s << (p.judged.converged ? ", settled" : ", NOT settled: " + p.judged.reason);
     return s.str();
   }
 
@@ -873,24 +966,28 @@ class Driver {
     t["backend"] = backend_.empty() ? "none (no particles)" : backend_;
     t["kernel_variant"] = variant_.empty() ? "none" : variant_;
     const char* schemes[] = {"loose", "interleaved", "tight"};
-    t["coupling"] = schemes[static_cast<int>(scenes_.front().coupling.scheme)];
-    const Scene& scene = scenes_[0];
+    const Scene& scene = *scenes_[0];
+    t["coupling"] = schemes[static_cast<int>(scene.coupling.scheme)];
     t["dt_basis"] = scene.dt_basis;
     if (!scene.warning.empty()) t["warning"] = scene.warning;
-    const ExcitationKind kind = scenes_.front().excitation.kind;
+    const ExcitationKind kind = excitation().kind;
     if (kind == ExcitationKind::stepped_sine || kind == ExcitationKind::prescribed)
-      t["start"] = start_name(scenes_.front().excitation.start);
+      t["start"] = start_name(excitation().start);
     const BedReport& bed = reports_[0];
-    t["bed"] =
-        !bed.ran         ? "not settled (bed.settle = false, or no gravity or particles)"
-        : bed_from_file_ ? "read from " + scenes_.front().bed.file
-        : bed.settled
-            ? "settled in " + number(bed.time_s) + " s"
-            : "NOT settled within bed.max_time = " + number(scenes_.front().bed.max_time) + " s";
+    t["bed"] = !bed.ran         ? "not settled (bed.settle = false, or no gravity or particles)"
+               : bed_from_file_ ? "read from " + scene.bed.file
+               : bed.settled
+                   ? "settled in " + number(bed.time_s) + " s"
+                   : "NOT settled within bed.max_time = " + number(scene.bed.max_time) + " s";
     n["bed_settled"] = bed.settled ? 1 : 0;
     n["bed_settle_time_s"] = bed.time_s;
     n["bed_speed"] = bed.speed;
-    n["realisations"] = double(scenes_.size());
+    n["realisations"] = double(fills_min_);
+    n["max_realisations"] = double(fills_max_);
+    std::size_t used = 0;
+    for (std::size_t k = 0; k < points_.size(); ++k)
+      for (const auto& p : points_[k]) used = p ? std::max(used, k + 1) : used;
+    n["fills_used"] = double(used);
     n["jobs"] = jobs_;
     n["threads"] = threads_;
     n["dt"] = scene.dt;
@@ -905,14 +1002,26 @@ class Driver {
   }
 
   const Deck& deck_;
-  std::vector<Scene> scenes_;  // one per realisation
+  SceneMaker make_scene_;
+  std::vector<std::unique_ptr<Scene>> scenes_;  // one per fill, built when first needed
+  std::mutex scene_mutex_;
   int jobs_;
   bool quiet_;
   std::string dump_path_;
-  std::vector<double> frequencies_;
-  std::vector<std::vector<std::optional<FrequencyPoint>>> points_;  // [realisation][frequency]
+  int fills_min_ = 1, fills_max_ = 1;
+  std::vector<double> frequencies_;  // of the points, in the order they are run
+  std::vector<int> sweeps_;          // +1 up, -1 down, per point
+  std::vector<std::vector<std::optional<FrequencyPoint>>> points_;  // [fill][point]
+  std::vector<char> done_;                                          // per point
   std::vector<StateArrays> beds_;
   std::vector<BedReport> reports_;
+  std::unique_ptr<std::once_flag[]> bed_once_;
+  std::vector<std::unique_ptr<FrequencyRun>> runs_;  // carried: each fill's run
+  std::vector<long> reached_;  // carried: the last point each fill ran (-1: none)
+  std::vector<long> target_;   // carried: the last point each fill is to run
+  std::vector<int> want_;      // carried: the fills each point wants
+  std::vector<char> busy_;     // carried: a worker is running the fill
+  std::vector<Seen> seen_;
   std::map<std::size_t, StateArrays> task_states_;
   std::map<std::size_t, TimeSeries> segments_;
   Results results_;
@@ -923,7 +1032,7 @@ class Driver {
   std::atomic<bool> stopped_{false};
   bool bed_from_file_ = false;
   std::optional<Results> failed_;
-  std::size_t finished_ = 0;  // frequencies finished in this process
+  std::size_t finished_ = 0;  // points finished in this process
   long long particle_steps_ = 0;
   double simulated_ = 0, wall_ = 0, wall_before_ = 0;
   Clock::time_point started_ = Clock::now();
@@ -931,72 +1040,75 @@ class Driver {
   int threads_ = 1;
 };
 
-// The frequencies (Hz) whose points did not converge, as a list for the terminal.
-// The frequencies whose flag is `value`, comma-separated.
-std::string listed(const std::vector<double>& frequency, const std::vector<int>& flag, int value) {
+// The frequencies whose flag is `value`, comma-separated (with the sweep when both ran).
+std::string listed(const std::vector<double>& frequency, const std::vector<int>& sweep,
+                   const std::vector<int>& flag, int value) {
+  const bool both = std::find(sweep.begin(), sweep.end(), -sweep.front()) != sweep.end();
   std::string list;
   for (std::size_t i = 0; i < frequency.size(); ++i)
-    if (flag[i] == value) list += (list.empty() ? "" : ", ") + number(frequency[i]);
+    if (flag[i] == value)
+      list += (list.empty() ? "" : ", ") + number(frequency[i]) +
+              (both ? (sweep[i] > 0 ? " (up)" : " (down)") : "");
   return list;
-}
-
-// The largest of `value` among converged points (index), or -1 when none converged.
-long peak_of(const std::vector<double>& value, const std::vector<int>& converged) {
-  long best = -1;
-  for (std::size_t i = 0; i < value.size(); ++i)
-    if (converged[i] && (best < 0 || value[i] > value[static_cast<std::size_t>(best)]))
-      best = static_cast<long>(i);
-  return best;
 }
 
 std::string summary_line(const Results& r, const std::string& path, const Deck& deck) {
   std::ostringstream s;
   s.precision(4);
-  auto tally = [&](const std::vector<double>& frequency, const std::vector<int>& converged,
-                   const std::vector<int>& interval, const std::vector<double>& value,
-                   const std::vector<double>& ci, double scale, const char* what,
-                   const char* unit) {
-    int count = 0;
-    for (int c : converged) count += c;
-    if (fixed_duration(deck.excitation)) {  // no steady state was asked for: say what it shows
-      s << frequency.size() << (frequency.size() == 1 ? " frequency" : " frequencies") << ", "
-        << deck.excitation.duration << " s each";
-      const long k = peak_of(value, std::vector<int>(frequency.size(), 1));
-      s << "; " << (frequency.size() == 1 ? "" : "peak ") << what << " "
-        << scale * value[std::size_t(k)] << " +- " << scale * ci[std::size_t(k)] << " " << unit
-        << " at " << frequency[std::size_t(k)] << " Hz";
-      if (count < static_cast<int>(frequency.size()))
-        s << "; drifting or too short for an interval at " << listed(frequency, converged, 0)
-          << " Hz (run longer)";
-      return;
-    }
-    s << frequency.size() << " frequencies, " << count << " converged";
-    const long k = peak_of(value, converged);
-    if (k >= 0)
-      s << "; peak " << what << " " << scale * value[std::size_t(k)] << " +- "
-        << scale * ci[std::size_t(k)] << " " << unit << " at " << frequency[std::size_t(k)]
-        << " Hz (of the converged points)";
-    if (count < static_cast<int>(frequency.size()))
-      s << "; NOT converged at " << listed(frequency, converged, 0)
-        << " Hz: not results (give them more settle.max_periods, a looser settle.tolerance or "
-           "more settle.realisations)";
-    const std::string disagree = listed(frequency, interval, 2);
-    if (!disagree.empty())
-      s << "; the realisations disagree at " << disagree
-        << " Hz (coexisting regimes of the bed: the interval is the spread of their means)";
-  };
+  const bool fixed = fixed_duration(deck.excitation);
   if (!r.frf.frequency.empty() && deck.excitation.kind == ExcitationKind::stepped_sine) {
-    s << "FRF: ";
-    tally(r.frf.frequency, r.frf.converged, r.frf.interval, r.frf.amplitude, r.frf.amplitude_ci,
-          1e3, "amplitude", "mm");
+    const FrfTable& f = r.frf;
+    int results = 0, branched = 0;
+    for (int k : f.result) results += k > 0, branched += k == 2;
+    s << "FRF: " << f.frequency.size() << " points, " << results << " results";
+    if (branched > 0) s << " (" << branched << " of several branches)";
+    const FrfPeak peak = frf_peak(f, r.fills);
+    if (peak.found)
+      s << "; peak amplitude " << 1e3 * peak.amplitude << " +- " << 1e3 * peak.amplitude_ci
+        << " mm at " << peak.frequency << " Hz (the mean over its fills; highest single fill "
+        << 1e3 * peak.upper << " mm)";
+    // The hard part stays in the headline: the largest mean where the point is not a result.
+    std::size_t hardest = f.frequency.size();
+    for (std::size_t i = 0; i < f.frequency.size(); ++i)
+      if (f.result[i] == 0 &&
+          (hardest == f.frequency.size() || f.amplitude[i] > f.amplitude[hardest]))
+        hardest = i;
+    if (hardest < f.frequency.size() && (!peak.found || f.amplitude[hardest] > peak.amplitude))
+      s << "; HIGHER where not a result: " << 1e3 * f.amplitude[hardest] << " +- "
+        << 1e3 * f.amplitude_ci[hardest] << " mm at " << f.frequency[hardest] << " Hz";
+    if (results < static_cast<int>(f.frequency.size()))
+      s << "; NOT results at " << listed(f.frequency, f.sweep, f.result, 0)
+        << " Hz (a fill still drifting at settle.max_periods, or the mean over "
+           "settle.max_realisations fills not known to settle.tolerance)";
+    if (branched > 0)
+      s << "; several branches at " << listed(f.frequency, f.sweep, f.result, 2)
+        << " Hz (fills of the same damper in distinct states: /frf/branch_means)";
   } else if (!r.frf.frequency.empty()) {
     s << "sine at " << r.frf.frequency[0] << " Hz: first harmonic " << 1e3 * r.frf.amplitude[0]
       << " +- " << 1e3 * r.frf.amplitude_ci[0] << " mm"
       << (r.frf.converged[0] ? "" : " (not stationary over the duration)");
   } else if (!r.prescribed.frequency.empty()) {
-    s << "prescribed motion: ";
-    tally(r.prescribed.frequency, r.prescribed.converged, r.prescribed.interval,
-          r.prescribed.dissipated_power, r.prescribed.dissipated_power_ci, 1.0, "power", "W");
+    const PrescribedTable& p = r.prescribed;
+    int count = 0;
+    for (int c : p.converged) count += c;
+    std::size_t k = 0;  // the peak over the result points (fixed runs: over all)
+    bool found = false;
+    for (std::size_t i = 0; i < p.frequency.size(); ++i)
+      if ((fixed || p.converged[i]) && (!found || p.dissipated_power[i] > p.dissipated_power[k]))
+        k = i, found = true;
+    const std::vector<int> sweep(p.frequency.size(), 1);
+    s << "prescribed motion: " << p.frequency.size()
+      << (p.frequency.size() == 1 ? " frequency" : " frequencies");
+    if (fixed)
+      s << ", " << deck.excitation.duration << " s each";
+    else
+      s << ", " << count << " results";
+    if (found)
+      s << "; " << (p.frequency.size() == 1 ? "" : "peak ") << "power " << p.dissipated_power[k]
+        << " +- " << p.dissipated_power_ci[k] << " W at " << p.frequency[k] << " Hz";
+    if (count < static_cast<int>(p.frequency.size()))
+      s << (fixed ? "; drifting or too short for an interval at " : "; NOT results at ")
+        << listed(p.frequency, sweep, p.converged, 0) << " Hz" << (fixed ? " (run longer)" : "");
   } else {
     s << "time history: " << r.timeseries.time.size() << " samples";
   }
@@ -1018,10 +1130,11 @@ std::string output_path(const Deck& deck, const RunOptions& options) {
 
 namespace {
 
-// The scene of every realisation (fill seeds seed + r of every damper) and how many runs go side
-// by side: one per core unless told, the cores shared out among them.
+// The first fill's scene, how to build any other fill's (fill seeds seed + r of every damper),
+// and how many runs go side by side: one per core unless told, the cores shared out.
 struct Plan {
-  std::vector<Scene> scenes;
+  Scene first;
+  std::function<Scene(int)> make_scene;
   int jobs = 1;
 };
 
@@ -1030,29 +1143,28 @@ Plan plan_run(const Deck& deck, const Scene& scene, int threads, int jobs,
   const ExcitationSpec& x = deck.excitation;
   const bool swept = x.kind == ExcitationKind::stepped_sine || x.kind == ExcitationKind::prescribed;
   const int realisations = swept ? x.settle.realisations : 1;
-  // Side by side: the realisations, or with independent frequencies the frequencies (each task
-  // runs its realisations in turn, Driver::run_tasks()).
+  // Side by side: the first fills, or with independent frequencies the frequencies (each task
+  // runs its fills in turn, Driver::run_independent()).
   const int tasks = swept && x.start == FrequencyStart::independent
                         ? static_cast<int>(x.frequencies.size())
                         : realisations;
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const int total = threads > 0 ? threads : deck.solver.threads > 0 ? deck.solver.threads : cores;
-  Plan plan;
-  plan.jobs = std::max(1, std::min(tasks, jobs > 0 ? jobs : total));
-  const int each = tasks > 1 ? std::max(1, total / plan.jobs) : threads;
-  for (int r = 0; r < realisations; ++r) {
+  const int side_by_side = std::max(1, std::min(tasks, jobs > 0 ? jobs : total));
+  const int each = tasks > 1 ? std::max(1, total / side_by_side) : threads;
+  auto make = [deck, each, backend](int r) {
     Deck seeded = deck;
     for (DamperSpec& d : seeded.dampers) d.particles.seed += static_cast<std::uint64_t>(r);
-    plan.scenes.push_back(r == 0 && each == threads ? scene : build_scene(seeded, each, backend));
-  }
-  return plan;
+    return build_scene(seeded, each, backend);
+  };
+  return {each == threads ? scene : make(0), make, side_by_side};
 }
 
 }  // namespace
 
 Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
   Plan plan = plan_run(deck, scene, scene.threads, jobs, std::nullopt);
-  Driver driver(deck, std::move(plan.scenes), plan.jobs, quiet, "");
+  Driver driver(deck, std::move(plan.first), plan.make_scene, plan.jobs, quiet, "");
   return driver.run({}, 0);
 }
 
@@ -1112,7 +1224,8 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   const Scene scene = build_scene(deck, options.threads, options.backend);
   if (!scene.warning.empty()) std::cerr << "warning: " << scene.warning << "\n";
   Plan plan = plan_run(deck, scene, options.threads, options.jobs, options.backend);
-  Driver driver(deck, std::move(plan.scenes), plan.jobs, options.quiet, path + ".blowup.csv");
+  Driver driver(deck, std::move(plan.first), plan.make_scene, plan.jobs, options.quiet,
+                path + ".blowup.csv");
   if (options.resume) {
     if (!fs::exists(partial))
       throw InputError(partial + ": nothing to resume (no checkpoint of an interrupted run)");
@@ -1208,8 +1321,13 @@ std::string check_report(const Deck& deck, const Scene& scene) {
     s << "frequencies: " << x.frequencies.size() << ", start = " << start_name(x.start)
       << "; steady when the 95 % interval is within " << 100 * settle.tolerance << " % ("
       << settle.min_periods << " to " << settle.max_periods << " periods, " << settle.batches
-      << " batches, " << settle.realisations << " realisation"
-      << (settle.realisations > 1 ? "s" : "") << ")\n";
+      << " batches; " << settle.realisations
+      << (settle.max_realisations > settle.realisations
+              ? " to " + std::to_string(settle.max_realisations) +
+                    " fills, added where they disagree"
+          : settle.realisations > 1 ? " fills"
+                                    : " fill")
+      << ")\n";
   if (deck.bed.settle)
     s << "bed: settled under gravity first, until no particle moves faster than " << deck.bed.speed
       << " m/s for " << kBedHold_s << " s (at most " << deck.bed.max_time << " s)"
@@ -1219,7 +1337,7 @@ std::string check_report(const Deck& deck, const Scene& scene) {
   if (judged)
     for (double f :
          (x.frequencies.empty() ? std::vector<double>{x.motion.frequency} : x.frequencies))
-      simulated += settle.realisations * settle.max_periods / f;
+      simulated += settle.max_realisations * settle.max_periods / f;
   else
     simulated = x.duration * static_cast<double>(std::max<std::size_t>(1, x.frequencies.size()));
   s << "simulated time: at most " << simulated << " s";

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -117,7 +118,7 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
   out << "point";
   for (const auto& key : deck.sweep.keys) out << "," << csv(key);
   out << ",status,file,wall_time_s,particle_steps_per_s";
-  if (frf) out << ",peak_amplitude_m,peak_frequency_hz,converged";
+  if (frf) out << ",peak_amplitude_m,peak_frequency_hz,results";
   if (prescribed) out << ",peak_power_w,peak_power_frequency_hz";
   out << "\n";
   for (const Point& p : points) {
@@ -150,7 +151,10 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
       out << "," << number(v[k], 6) << "," << number(f[k], 6);
     };
     if (frf && !r.frf.frequency.empty()) {
-      peak_of(r.frf.amplitude, r.frf.frequency);
+      // The run's own headline (frf_peak: over every result point), NaN without results.
+      const FrfPeak peak = frf_peak(r.frf, r.fills);
+      out << "," << number(peak.found ? peak.amplitude : std::nan(""), 6) << ","
+          << number(peak.found ? peak.frequency : std::nan(""), 6);
       int converged = 0;
       for (int c : r.frf.converged) converged += c;
       out << "," << converged << "/" << r.frf.converged.size();

@@ -413,6 +413,19 @@ TEST_CASE("realisations: two by default for a random fill, need one, the energy 
   // Not given: two for a random fill (the fewest that show coexisting regimes), one for a
   // lattice, and one when the energy ledger asks for one continuous run.
   CHECK(parse_deck(random, "deck.toml").excitation.settle.realisations == 2);
+  // Fills added where they disagree: up to kDefaultMaxFills, at least realisations.
+  CHECK(parse_deck(random, "deck.toml").excitation.settle.max_realisations == kDefaultMaxFills);
+  CHECK(one.excitation.settle.max_realisations == 1);
+  CHECK(error_of(random + "settle = { realisations = 3, max_realisations = 2 }\n")
+            .find("'excitation.settle.max_realisations'") != std::string::npos);
+  // Up, then down from the top: each frequency twice, the sweeps marked.
+  std::string swept = random;
+  swept.replace(swept.find("frequencies = [15]"), 18, "frequencies = [14, 15, 16]");
+  const Deck both = parse_deck(swept + "direction = \"both\"\n", "deck.toml");
+  CHECK(both.excitation.frequencies == std::vector<double>{14, 15, 16, 16, 15, 14});
+  CHECK(both.excitation.sweeps == std::vector<int>{1, 1, 1, -1, -1, -1});
+  CHECK(error_of(random + "direction = \"both\"\nstart = \"independent\"\n")
+            .find("'excitation.direction'") != std::string::npos);
   CHECK(one.excitation.settle.realisations == 1);
   CHECK(parse_deck(random + "[output]\nenergy = true\n", "deck.toml")
             .excitation.settle.realisations == 1);

@@ -70,10 +70,12 @@ void frf_columns(T& t, F&& f) {
   f("phase_ci", t.phase_ci, "rad", "95 % half-width of phase (as amplitude_ci)");
   f("phase_spread", t.phase_spread, "rad", "95 % prediction half-width of phase over the fills");
   f("result", t.result, "1",
-    "0 not a result (a fill not settled on its own, or the ensemble mean amplitude not known to "
-    "settle.tolerance with settle.max_realisations fills), 1 one state (the ensemble mean "
-    "amplitude known to the tolerance), 2 several branches (each branch's mean amplitude known "
-    "to the tolerance; the ensemble mean carries its wide interval)");
+    "0 not a result (a fill still drifting at settle.max_periods, or fills that agree on one "
+    "state whose mean is not known to settle.tolerance with settle.max_realisations fills), 1 "
+    "one state (the ensemble mean amplitude known to the tolerance), 2 several branches (each "
+    "branch's mean known to the tolerance, or, with settle.max_realisations fills, fills "
+    "distinct beyond their own intervals; the ensemble mean carries its wide interval, "
+    "/frf/branch_means/within_tolerance says which branches meet the tolerance)");
   f("branches", t.branches, "1",
     "distinct states among the fills (fills linked when their amplitudes agree within "
     "settle.tolerance or their own intervals; /frf/branch_means)");
@@ -98,7 +100,7 @@ void frf_columns(T& t, F&& f) {
 // /frf/fills: every fill's own value at every point.
 struct FillTable {
   std::vector<double> frequency, amplitude, amplitude_ci, phase, phase_ci;
-  std::vector<int> sweep, realisation, branch, periods, converged;
+  std::vector<int> sweep, realisation, branch, periods, converged, settled;
 };
 template <class T, class F>
 void fill_columns(T& t, F&& f) {
@@ -111,14 +113,17 @@ void fill_columns(T& t, F&& f) {
   f("phase", t.phase, "rad", "the fill's mean phase");
   f("phase_ci", t.phase_ci, "rad", "its 95 % half-width");
   f("periods", t.periods, "1", "periods the fill ran at this point");
-  f("converged", t.converged, "1", "1 when the fill settled on its own");
+  f("converged", t.converged, "1", "1 when the fill's own mean is known to settle.tolerance");
+  f("settled", t.settled, "1",
+    "1 when the fill settled on its own: converged, or held still (no drift) when "
+    "settle.max_periods ended it, its interval then as wide as it is; 0 still drifting");
 }
 
 // /frf/branch_means: each branch of each point.
 struct BranchTable {
   std::vector<double> frequency, share, share_low, share_high, amplitude, amplitude_ci, phase,
       phase_ci;
-  std::vector<int> sweep, branch, fills;
+  std::vector<int> sweep, branch, fills, within_tolerance;
 };
 template <class T, class F>
 void branch_columns(T& t, F&& f) {
@@ -133,6 +138,8 @@ void branch_columns(T& t, F&& f) {
   f("amplitude_ci", t.amplitude_ci, "m", "its 95 % half-width");
   f("phase", t.phase, "rad", "mean phase of the branch's fills");
   f("phase_ci", t.phase_ci, "rad", "its 95 % half-width");
+  f("within_tolerance", t.within_tolerance, "1",
+    "1 when the branch's mean amplitude is known to settle.tolerance");
 }
 
 // The headline of an FRF, over every result point (/frf attributes, the run's summary line and

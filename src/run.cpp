@@ -128,7 +128,8 @@ std::vector<double> pack(const FrequencyPoint& p) {
           p.energy_in.half_width,
           p.mean.dissipated_normal,
           p.mean.dissipated_tangential,
-          p.mean.dissipated_rolling};
+          p.mean.dissipated_rolling,
+          double(j.stationary)};
 }
 
 // The per-period harmonics of a point, five numbers a period.
@@ -150,8 +151,8 @@ void unpack_periods(const std::vector<double>& v, FrequencyPoint& p) {
 }
 
 FrequencyPoint unpack(const std::vector<double>& v) {
-  // 18 numbers: written before rolling was tallied.
-  if (v.size() != 18 && v.size() != 19)
+  // 18 numbers: written before rolling was tallied; 19 before stationary was kept.
+  if (v.size() < 18 || v.size() > 20)
     throw SimulationError("checkpoint point of an unknown layout");
   FrequencyPoint p;
   Stationary& j = p.judged;
@@ -173,20 +174,29 @@ FrequencyPoint unpack(const std::vector<double>& v) {
   p.mean.dissipated_normal = v[16];
   p.mean.dissipated_tangential = v[17];
   p.mean.dissipated_rolling = v.size() > 18 ? v[18] : std::nan("");  // not measured
+  j.stationary = v.size() > 19 ? v[19] != 0 : j.converged;
   return p;
 }
 
-// The ensemble of a point's fills (judge_ensemble()). A fixed run asked for no tolerance: it is
-// a result when every fill's periods are stationary, and adds no fills.
+// A fill settled on its own: its mean known to the tolerance, or held still when max_periods
+// ended it (a run stops before max_periods only when converged).
+bool settled(const Stationary& j) {
+  return j.converged || j.stationary;
+}
+
+// The ensemble of a point's fills (judge_ensemble(); with settle.max_realisations fills no
+// more will come). A fixed run asked for no tolerance: it is a result when every fill's
+// periods are stationary, and adds no fills.
 Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const ExcitationSpec& x) {
   std::vector<FillValue> fills;
   for (const FrequencyPoint& p : runs)
     fills.push_back({p.judged.mean, p.judged.amplitude_ci, p.judged.phase_ci, p.judged.batches - 1,
-                     p.judged.converged});
-  Ensemble e = judge_ensemble(fills, x.settle.tolerance);
+                     settled(p.judged)});
+  const bool last = static_cast<int>(runs.size()) >= x.settle.max_realisations;
+  Ensemble e = judge_ensemble(fills, x.settle.tolerance, last);
   if (fixed_duration(x)) {
-    const bool all =
-        std::all_of(fills.begin(), fills.end(), [](const FillValue& f) { return f.converged; });
+    const bool all = std::all_of(runs.begin(), runs.end(),
+                                 [](const FrequencyPoint& p) { return p.judged.converged; });
     e.result = !all                  ? PointResult::none
                : e.branch.size() > 1 ? PointResult::branches
                                      : PointResult::one_state;
@@ -327,6 +337,7 @@ void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fi
     t.phase_ci.push_back(p.judged.phase_ci);
     t.periods.push_back(p.judged.periods);
     t.converged.push_back(p.judged.converged ? 1 : 0);
+    t.settled.push_back(settled(p.judged) ? 1 : 0);
   }
   for (std::size_t b = 0; b < e.branch.size(); ++b) {
     const GroupMean& g = e.branch[b];
@@ -342,6 +353,7 @@ void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fi
     t.amplitude_ci.push_back(g.amplitude.half_width);
     t.phase.push_back(g.phase.mean);
     t.phase_ci.push_back(g.phase.half_width);
+    t.within_tolerance.push_back(g.within(x.settle.tolerance) ? 1 : 0);
   }
 }
 // Everything that decides a settled bed: a bed file made for other particles is refused.
@@ -950,7 +962,9 @@ class Driver {
     if (fixed_duration(excitation()))
       s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
     else
-      s << (p.judged.converged ? ", settled" : ", NOT settled: " + p.judged.reason);
+      s << (p.judged.converged  ? ", settled"
+            : settled(p.judged) ? ", held still (" + p.judged.reason + ")"
+                                : ", NOT settled: " + p.judged.reason);
     return s.str();
   }
 
@@ -1078,11 +1092,12 @@ std::string summary_line(const Results& r, const std::string& path, const Deck& 
         << 1e3 * f.amplitude_ci[hardest] << " mm at " << f.frequency[hardest] << " Hz";
     if (results < static_cast<int>(f.frequency.size()))
       s << "; NOT results at " << listed(f.frequency, f.sweep, f.result, 0)
-        << " Hz (a fill still drifting at settle.max_periods, or the mean over "
-           "settle.max_realisations fills not known to settle.tolerance)";
+        << " Hz (a fill still drifting at settle.max_periods, or settle.max_realisations "
+           "fills agreeing on one state whose mean is not known to settle.tolerance)";
     if (branched > 0)
       s << "; several branches at " << listed(f.frequency, f.sweep, f.result, 2)
-        << " Hz (fills of the same damper in distinct states: /frf/branch_means)";
+        << " Hz (fills of the same damper in distinct states, the mean's interval their "
+           "spread: /frf/fills, /frf/branch_means)";
   } else if (!r.frf.frequency.empty()) {
     s << "sine at " << r.frf.frequency[0] << " Hz: first harmonic " << 1e3 * r.frf.amplitude[0]
       << " +- " << 1e3 * r.frf.amplitude_ci[0] << " mm"

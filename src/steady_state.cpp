@@ -298,7 +298,7 @@ Stationary summarise(const std::vector<std::complex<double>>& series,
   const bool drift_p =
       significant_slope(kept_p, &slope_p) && std::fabs(slope_p) * retained > relevant;
   s.trend = drift_a || drift_p;
-
+  s.stationary = n >= criteria.min_periods && !s.trend && s.batches >= criteria.min_batches;
   return s;
 }
 
@@ -383,6 +383,7 @@ GroupMean group_mean(const std::vector<FillValue>& fills, const std::vector<int>
   g.phase = {std::arg(along * std::polar(1.0, phase.interval.mean)),
              std::min(kPi, phase.interval.half_width)};
   g.consistent = amplitude.consistent && phase.consistent;
+  g.amplitudes_agree = amplitude.consistent;
   const int r = g.fills;
   auto predict = [r](const std::vector<double>& v) {
     return r < 2 ? std::nan("") : student_t975(r - 1) * sample_sd(v) * std::sqrt(1 + 1.0 / r);
@@ -394,7 +395,7 @@ GroupMean group_mean(const std::vector<FillValue>& fills, const std::vector<int>
 
 }  // namespace
 
-Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance) {
+Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance, bool last) {
   Ensemble e;
   const int n = static_cast<int>(fills.size());
   std::vector<int> all(static_cast<std::size_t>(n));
@@ -448,12 +449,13 @@ Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance) {
   e.branch = std::move(sorted);
 
   int unsettled = 0;
-  for (const FillValue& f : fills) unsettled += f.converged ? 0 : 1;
+  for (const FillValue& f : fills) unsettled += f.settled ? 0 : 1;
   char text[96];
   if (n == 0) {
     e.reason = "no fills";
   } else if (unsettled > 0) {
-    std::snprintf(text, sizeof text, "%d of %d fills not settled on their own", unsettled, n);
+    std::snprintf(text, sizeof text, "%d of %d fills not settled on their own (drifting)",
+                  unsettled, n);
     e.reason = text;
   } else if (e.mean.within(tolerance)) {
     e.result = e.branch.size() > 1 ? PointResult::branches : PointResult::one_state;
@@ -462,8 +464,12 @@ Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance) {
     const bool each =
         e.branch.size() > 1 && std::all_of(e.branch.begin(), e.branch.end(),
                                            [&](const GroupMean& g) { return g.within(tolerance); });
-    if (each) {
+    if (each || (last && !e.mean.amplitudes_agree)) {
       e.result = PointResult::branches;
+    } else if (last) {
+      std::snprintf(text, sizeof text,
+                    "%d fills agree on one state whose mean is not known to the tolerance", n);
+      e.reason = text;
     } else {
       std::snprintf(text, sizeof text, "the mean over %d fills is not known to the tolerance", n);
       e.reason = text;

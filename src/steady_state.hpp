@@ -33,8 +33,11 @@ struct Stationary {
   double amplitude_ci = 0, phase_ci = 0;  // 95 % half-widths of |mean| (its unit) and arg (rad)
   bool correlated = false;  // too few batches of the needed length: run longer (or realisations)
   bool trend = false;       // the retained periods drift, significantly and by a relevant amount
-  bool converged = false;
-  std::string reason;  // why not converged ("" when converged)
+  // Held still: min_periods run, no relevant drift, and at least min_batches batches, whether or
+  // not the mean is known to the tolerance (a fill near resonance wandering within its state).
+  bool stationary = false;
+  bool converged = false;  // stationary, and the mean known to the tolerance
+  std::string reason;      // why not converged ("" when converged)
 };
 
 // Analyses H_0..H_{n-1}. Deviations below a tenth of tolerance x |H| are resolution, not signal:
@@ -74,12 +77,13 @@ Combined combine_runs(const std::vector<RunMean>& runs, double resolution);
 
 // One fill (a realisation: a random packing of the damper) at one point: its own stationary
 // mean first harmonic and 95 % half-widths (src/frequency_run.cpp), batches - 1 degrees of
-// freedom, and whether it settled on its own.
+// freedom, and whether it settled on its own: its mean known to the tolerance, or held still
+// (Stationary::stationary) when max_periods ended it, its interval then as wide as it is.
 struct FillValue {
   std::complex<double> harmonic;
   double amplitude_ci = 0, phase_ci = 0;  // its unit, rad
   int dof = 0;
-  bool converged = false;
+  bool settled = false;
 };
 
 // Mean amplitude and phase of a group of fills with their 95 % intervals (combine_runs():
@@ -89,7 +93,8 @@ struct FillValue {
 struct GroupMean {
   MeanInterval amplitude, phase;  // phase in rad, of the group's mean direction
   double amplitude_spread = 0, phase_spread = 0;
-  bool consistent = true;
+  bool consistent = true;        // amplitudes and phases agree within the fills' intervals
+  bool amplitudes_agree = true;  // the amplitudes alone do
   int fills = 0;
   // Its share of the point's fills, and the 95 % Wilson score interval of that proportion.
   double share = 1, share_low = 0, share_high = 1;
@@ -117,8 +122,14 @@ struct Ensemble {
 // Result rules: every fill must have settled on its own (else not a result: a fill still
 // drifting at max_periods); then one state when the ensemble mean amplitude's interval meets
 // `tolerance` (relative), several branches when there are two or more and each branch's mean
-// meets it (the ensemble mean then carries its wide interval), else not a result.
-Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance);
+// meets it (the ensemble mean then carries its wide interval). With `last` (no more fills will
+// come: settle.max_realisations reached), fills that are distinct beyond their own intervals
+// (Cochran's Q, combine_runs()) are a result of several states even where a branch's mean
+// misses the tolerance: the distribution over fills is what this damper has there, and the
+// mean, the spread and each branch carry their own intervals (GroupMean::within says which
+// meet the tolerance). Fills that agree on one state whose mean misses the tolerance are not a
+// result: their own intervals are too wide (more periods, settle.max_periods, would narrow them).
+Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance, bool last = false);
 
 // Two-sided 95 % and 99 % quantiles of Student's t with `dof` degrees of freedom (infinity for
 // dof < 1).

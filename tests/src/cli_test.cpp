@@ -428,7 +428,7 @@ TEST_CASE("fills that disagree are joined by more fills, the same on one job and
     CAPTURE(r.frf.frequency[i]);
     int fills = 0, unsettled = 0;
     for (std::size_t k = 0; k < f.frequency.size(); ++k)
-      if (f.frequency[k] == r.frf.frequency[i]) ++fills, unsettled += f.converged[k] == 0;
+      if (f.frequency[k] == r.frf.frequency[i]) ++fills, unsettled += f.settled[k] == 0;
     CHECK(r.frf.realisations[i] == fills);
     CHECK(fills >= 2);
     CHECK(fills <= pdsim::kDefaultMaxFills);
@@ -437,8 +437,10 @@ TEST_CASE("fills that disagree are joined by more fills, the same on one job and
     if (r.frf.result[i] == 0) CHECK((unsettled > 0 || fills == pdsim::kDefaultMaxFills));
     if (unsettled > 0) CHECK(r.frf.result[i] == 0);
   }
-  for (std::size_t k = 0; k < f.frequency.size(); ++k)
+  for (std::size_t k = 0; k < f.frequency.size(); ++k) {
     if (!f.converged[k]) CHECK(f.periods[k] == max_periods);
+    if (f.converged[k]) CHECK(f.settled[k] == 1);
+  }
 }
 
 // Three realisations on two jobs: a run done early keeps up with one still going while the third

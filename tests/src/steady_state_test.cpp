@@ -337,9 +337,43 @@ TEST_CASE(
 
 TEST_CASE("ensemble: a fill still drifting makes the point not a result, and fills do not help") {
   FillValue drifting = fill_at(kTruth * 1.01);
-  drifting.converged = false;
+  drifting.settled = false;
   const Ensemble e = judge_ensemble({fill_at(kTruth), drifting, fill_at(kTruth * 0.999)}, 2e-2);
   CHECK(e.result == PointResult::none);
   CHECK_FALSE(e.wants_fills);
   CHECK(e.reason.find("1 of 3 fills not settled") != std::string::npos);
+}
+
+// With settle.max_realisations fills no more will come: fills held in distinct states are the
+// result (several states, the mean with its wide interval), even where a state's own mean is
+// known only to its fill's interval; fills that agree on one state whose mean misses the
+// tolerance are not (their intervals are too wide: more periods would narrow them).
+TEST_CASE("ensemble at the cap of fills: distinct states are a result, one vague state is not") {
+  // Four fills of a continuum near resonance (the Saeki deck at 15 Hz, stop 29: 1.50, 1.78,
+  // 1.92, 2.15 mm), two of them known only to 4 %, the tolerance 2 %.
+  std::vector<FillValue> spread;
+  for (double mm : {1.50, 1.78, 1.92, 2.15}) spread.push_back(fill_at(kTruth * mm, 2e-3));
+  spread[1] = fill_at(kTruth * 1.78, 4e-2);
+  spread[3] = fill_at(kTruth * 2.15, 4e-2);
+  const Ensemble before = judge_ensemble(spread, 2e-2, false);
+  CHECK(before.result == PointResult::none);
+  CHECK(before.wants_fills);
+  const Ensemble last = judge_ensemble(spread, 2e-2, true);
+  CHECK(last.result == PointResult::branches);
+  CHECK_FALSE(last.mean.amplitudes_agree);
+  CHECK(last.branch.size() >= 2);
+  // The mean's interval is the honest Student-t one over four fills: t3 s / 2, s = 0.27 mm
+  // (relative to kTruth), 0.43.
+  CHECK(last.mean.amplitude.half_width / std::abs(kTruth) == doctest::Approx(0.43).epsilon(0.02));
+  // Fills within their own 4 % intervals of one value: one state, its mean known to about
+  // 4 % / sqrt(4), not 2 % with the floor: not a result, and more periods, not fills, would help.
+  std::vector<FillValue> vague;
+  for (double x : {0.99, 1.0, 1.01, 1.02}) vague.push_back(fill_at(kTruth * x, 6e-2));
+  const Ensemble one = judge_ensemble(vague, 2e-2, true);
+  CHECK(one.mean.amplitudes_agree);
+  CHECK(one.result == PointResult::none);
+  CHECK(one.reason.find("agree on one state") != std::string::npos);
+  // A drifting fill stays not a result at the cap.
+  spread[0].settled = false;
+  CHECK(judge_ensemble(spread, 2e-2, true).result == PointResult::none);
 }

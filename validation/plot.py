@@ -10,8 +10,9 @@ Usage:
 
 The format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector); the default is
 <kind>.png. Every axis is labelled with its unit; each plot says what its error bars are.
-- frf: /frf amplitude (or receptance) and phase with 95 % intervals (validation/plot_frf.py,
-  which documents the options).
+- frf: /frf amplitude (or receptance) and phase, the mean over the fills with its 95 %
+  interval, the band where one fill lies and every fill's own value (validation/plot_frf.py,
+  which documents the markers and the options).
 - timeseries: /timeseries displacement (mm) and damper force (N, at the samples and averaged
   between them) against time; --frequency keeps the samples taken at that drive frequency (a
   stepped sine records every frequency in turn).

@@ -1,4 +1,3 @@
-#!/usr/bin/python3
 """Plot stepped-sine frequency responses (/frf) of pdsim runs, optionally against a measured curve.
 
 Usage: validation/plot_frf.py OUT.h5 [OTHER.h5 ...] [--measured CSV] [--receptance] [--bare]
@@ -8,22 +7,50 @@ Usage: validation/plot_frf.py OUT.h5 [OTHER.h5 ...] [--measured CSV] [--receptan
 Draws two stacked panels sharing the frequency axis (Hz): the first-harmonic displacement
 amplitude (mm, /frf/amplitude) and its phase against the input sin(angle) (rad, /frf/phase, as
 stored), one colour per file, labelled by the /meta attribute `title` (else the file name) and
-the /meta attribute `start` (predicted, carried or independent) when present.
-- Converged points (/frf/converged = 1) are filled markers with 95 % confidence error bars
-  (± /frf/amplitude_ci, ± /frf/phase_ci), joined by a line only between neighbouring converged
-  points: the line breaks wherever an unconverged point lies between them.
-- Unconverged points (/frf/converged = 0) are not results: hollow markers, no line, no error
-  bars, one legend entry "not converged (not a result)".
-- Where several realisations disagree (/frf/interval = 2: coexisting regimes of the bed, the
-  interval is the spread of their means), each realisation's own mean (over its stationary
-  periods in /periods) is drawn as a small cross at that frequency, to show the regimes.
+the /meta attribute `start` (predicted, carried or independent) when present. A point's value
+is the mean over an ensemble of fills (random packings of the same damper). On both panels:
+- Result points (/frf/result > 0; files without that column: /frf/converged = 1) are filled
+  markers with the 95 % confidence error bars of the ensemble mean (± /frf/amplitude_ci,
+  ± /frf/phase_ci), joined by a line only between neighbouring result points: the line breaks
+  wherever a point that is not a result lies between them. A circle is a point in one state
+  (result 1); a diamond one of several branches (result 2: fills of the same damper in
+  distinct states, the mean between them and its error bar their spread), legend entry
+  "several branches (result 2)".
+- Points that are not results (result 0) are hollow circles: no line, no error bars, one
+  legend entry "not a result".
+- A light band in the file's colour, mean ± /frf/amplitude_spread (phase: ± /frf/phase_spread),
+  is the 95 % prediction interval over the fills: where one fill (one damper of this design)
+  lies, wider than the error bar of the mean (the amplitude band stops at zero). It spans the
+  runs of neighbouring points where the spread is finite (it is NaN with one fill), whether
+  results or not; legend entry "where one fill lies (95 % prediction)". Files without the columns have no band.
+- Every fill's own mean at every point (/frf/fills amplitude and phase) is a small
+  semi-transparent marker in the file's colour at its frequency, its shape the fill's branch
+  there (/frf/fills/branch, 0 the highest amplitude): x branch 0, + branch 1, tri-down
+  branch 2, tri-up branch 3, then again from x; legend entry "one fill (marker: its branch)".
+  Files without /frf/fills show instead, where their realisations disagree (/frf/interval = 2),
+  each realisation's mean over its stationary periods in /periods as a small cross, legend
+  entry "one realisation's mean (where they disagree)".
+- A file holding both sweep directions (/frf/sweep +1 and -1: excitation.direction = "both")
+  is drawn as two curves in its colour, each sorted by frequency: the up sweep solid and
+  labelled "... (up)", the down sweep dashed and labelled "... (down)"; each fill goes with
+  the sweep of its /frf/fills/sweep. Files without /frf/sweep are one up sweep.
 Files written before the _ci columns existed (or with NaN CIs) get no error bars for those points.
+The legend sits below the panels, the grey entries standing for every file's colour.
 The output format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector).
 
-Prints for each file its peak amplitude over the converged points, with its confidence
-half-width, e.g. "peak amplitude 1.408 ± 0.012 mm at 15 Hz (converged points only)", or
-"no converged point". A file without /frf (e.g. a prescribed-motion result, /prescribed) is an
-error (exit status 1).
+Prints for each file its peak: the highest ensemble mean amplitude over the result points with
+its 95 % half-width, and the highest single fill at a result point, as one line, e.g.
+    OUT.h5: peak amplitude 0.878 ± 0.183 mm at 14.5 Hz over the result points
+    (highest single fill 1.042 mm)
+taken from the /frf attributes peak_amplitude, peak_amplitude_ci, peak_frequency, peak_upper
+and peak_sweep when the file has them, else from the columns (the highest single fill then
+from /frf/fills, left out without it); "(no CI)" stands for a missing half-width, and a file
+with both sweeps names the sweep after each frequency, e.g. "at 14.5 Hz (down sweep)".
+When a point that is not a result has a higher mean than the peak, a second line gives the
+highest such point:
+      higher, NOT a result: 1.84 ± 0.43 mm at 15 Hz
+A file without a result point prints "no result point (0 of N points are results)". A file
+without /frf (e.g. a prescribed-motion result, /prescribed) is an error (exit status 1).
 
 --receptance: amplitude per newton of drive (m/N, /meta/deck's excitation.amplitude), for
 force input only; files driven otherwise are an error.
@@ -37,10 +64,11 @@ in SI units (Hz, m, amplitude > 0); lines starting with '#' are comments. Exampl
     # Saeki (2002) fig. 5b, 250 particles, digitised by hand
     12.0,0.00051
     15.2,0.00230
-It is drawn on the amplitude panel. For each file the script then prints the RMS relative
-difference sqrt(mean(((sim - meas) / meas)^2)), with the simulated amplitude interpolated
-linearly at the measured frequencies between the file's converged points only; measured points
-outside the frequency range of the converged points are left out and counted.
+It is drawn on the amplitude panel. For each file (each sweep of a file with both) the script
+then prints the RMS relative difference sqrt(mean(((sim - meas) / meas)^2)), with the
+simulated amplitude (the ensemble mean) interpolated linearly at the measured frequencies
+between the result points only; measured points outside the frequency range of the result
+points are left out and counted.
 """
 import argparse
 import math
@@ -53,13 +81,21 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 import numpy as np  # noqa: E402
 import h5py  # noqa: E402
 
 HEADER = "frequency_hz,amplitude_m"
 FORMATS = (".png", ".pdf", ".svg")
-NOT_CONVERGED = "not converged (not a result)"
+NOT_RESULT = "not a result"
+BRANCHED = "several branches (result 2)"
+SPREAD = "where one fill lies (95 % prediction)"
+FILL = "one fill (marker: its branch)"
 DISAGREE = "one realisation's mean (where they disagree)"
+BRANCH_MARKERS = ("x", "+", "1", "2")  # a fill's branch 0, 1, 2, 3, then again
+UNITS = {"frequency": "Hz", "amplitude": "m", "amplitude_ci": "m", "amplitude_spread": "m",
+         "phase": "rad", "phase_ci": "rad", "phase_spread": "rad"}
+PEAK = ("amplitude", "amplitude_ci", "frequency", "upper", "sweep")  # /frf attributes peak_*
 
 
 def text(value):
@@ -67,8 +103,28 @@ def text(value):
     return value.decode("utf-8", "replace") if isinstance(value, bytes) else value
 
 
+def columns(path, group, names):
+    """The named columns of an HDF5 group (/frf or /frf/fills) as arrays; None for a column
+    the group lacks or holds with another length than its frequency column (older writers lack
+    some columns, and an empty one is as good as missing). Exits on a column in wrong units."""
+    n = group["frequency"].shape[0]
+    out = {}
+    for name in names:
+        if name not in group or group[name].shape[0] != n:
+            out[name] = None
+            continue
+        units, expected = text(group[name].attrs.get("units")), UNITS.get(name)
+        if units is not None and expected is not None and units != expected:
+            sys.exit(f"plot_frf.py: {path}: {group.name}/{name} is in '{units}', "
+                     f"expected '{expected}'")
+        out[name] = group[name][()]
+    return out
+
+
 def read_frf(path):
-    """Returns a dict of the /frf columns sorted by frequency, with label; absent CIs are None."""
+    """Returns a dict of the /frf columns sorted by frequency, with label, result (0, 1, 2),
+    sweep (+1, -1), fills (the /frf/fills columns, or None) and peak (the /frf peak_*
+    attributes without the prefix, or None); absent CIs and spreads are None."""
     try:
         with h5py.File(path, "r") as h5:
             if "frf" not in h5:
@@ -80,37 +136,54 @@ def read_frf(path):
             if "frequency" not in frf or "amplitude" not in frf:
                 sys.exit(f"plot_frf.py: {path} has no /frf/frequency and /frf/amplitude")
             n = frf["frequency"].shape[0]
-
-            def column(name):
-                # Older writers lack some columns, and an empty one is as good as missing.
-                if name not in frf or frf[name].shape[0] != n:
-                    return None
-                units = text(frf[name].attrs.get("units"))
-                expected = {"frequency": "Hz", "amplitude": "m", "amplitude_ci": "m",
-                            "phase": "rad", "phase_ci": "rad"}.get(name)
-                if units is not None and expected is not None and units != expected:
-                    sys.exit(f"plot_frf.py: {path}: /frf/{name} is in '{units}', "
-                             f"expected '{expected}'")
-                return frf[name][()]
-
-            data = {name: column(name) for name in ("frequency", "amplitude", "amplitude_ci",
-                                                    "phase", "phase_ci", "converged", "interval")}
-            data["runs"] = realisation_means(h5, data["frequency"], data["interval"])
+            data = columns(path, frf, ("frequency", "amplitude", "amplitude_ci",
+                                       "amplitude_spread", "phase", "phase_ci", "phase_spread",
+                                       "result", "converged", "sweep", "interval"))
+            fills, group = None, frf.get("fills")
+            if (group is not None and "frequency" in group and "amplitude" in group
+                    and group["frequency"].size):
+                fills = columns(path, group, ("frequency", "sweep", "branch", "amplitude",
+                                              "phase"))
+                m = fills["frequency"].size
+                for name, fallback in (("sweep", 1), ("branch", 0), ("phase", np.nan)):
+                    if fills[name] is None:
+                        fills[name] = np.full(m, fallback)
+                fills["sweep"] = np.where(fills["sweep"] < 0, -1, 1)
+            peak = None
+            if "peak_amplitude" in frf.attrs:
+                peak = {name: float(frf.attrs["peak_" + name]) for name in PEAK
+                        if "peak_" + name in frf.attrs}
+            # Files without /frf/fills: the realisations' means from /periods instead.
+            runs = (realisation_means(h5, data["frequency"], data["interval"]) if fills is None
+                    else [])
             meta = h5["meta"].attrs if "meta" in h5 else {}
             title, start = text(meta.get("title")), text(meta.get("start"))
     except OSError as error:
         sys.exit(f"plot_frf.py: cannot read {path}: {error}")
     if data["phase"] is None:
         data["phase"] = np.full(n, np.nan)
-    if data["converged"] is None:  # files from before the column: every point counted
-        data["converged"] = np.ones(n, dtype=int)
-    runs = data.pop("runs")
-    order = np.argsort(data["frequency"])
+    if data["result"] is None:  # files from before the column: converged, else every point
+        data["result"] = data["converged"] if data["converged"] is not None else np.ones(n)
+    if data["sweep"] is None:  # files from before the column: one sweep up
+        data["sweep"] = np.ones(n)
+    order = np.argsort(data["frequency"], kind="stable")
     data = {name: None if values is None else values[order] for name, values in data.items()}
-    data["runs"] = runs
-    data["converged"] = data["converged"].astype(bool)
+    data["result"] = data["result"].astype(int)
+    data["sweep"] = np.where(data["sweep"] < 0, -1, 1)
+    data.update(fills=fills, peak=peak, runs=runs)
     data["label"] = (title or os.path.basename(path)) + (f" (start: {start})" if start else "")
     return data
+
+
+def sweeps(data):
+    """Yields (name, line style, rows of /frf, rows of /frf/fills or None) for each sweep
+    direction in the file: up solid, down dashed, named only when the file holds both."""
+    directions = [s for s in (1, -1) if (data["sweep"] == s).any()]
+    for s in directions:
+        both = len(directions) > 1
+        fills = None if data["fills"] is None else data["fills"]["sweep"] == s
+        yield (("up" if s > 0 else "down") if both else None, "--" if both and s < 0 else "-",
+               data["sweep"] == s, fills)
 
 
 def deck_of(path):
@@ -199,32 +272,93 @@ def rms_relative_difference(frequency, amplitude, measured_frequency, measured_a
     return float(np.sqrt(np.mean(relative**2))), int(inside.sum()), int((~inside).sum())
 
 
-def plot_panel(axes, frequency, values, ci, converged, color, label):
-    """Draws one file on one panel: converged points joined and with error bars, others hollow."""
-    # NaN at the unconverged points makes matplotlib break the line there, so no segment
-    # ever passes through (or bridges over) a point that is not a result.
-    joined = np.where(converged, values, np.nan)
-    axes.plot(frequency, joined, "o-", ms=4, color=color, label=label)
+def plot_panel(axes, part, name, scale, color, label, line):
+    """Draws one sweep of one file (part: its /frf columns) on one panel, column name
+    (amplitude or phase) times scale: the band where one fill lies, result points joined and
+    with error bars (diamonds of several branches), the others hollow."""
+    frequency, values, result = part["frequency"], part[name] * scale, part["result"]
+    ci, spread = (None if part.get(name + suffix) is None else part[name + suffix] * scale
+                  for suffix in ("_ci", "_spread"))
+    if spread is not None:
+        finite = np.isfinite(values) & np.isfinite(spread)
+        # An amplitude is never negative: the band stops at zero.
+        lower = np.maximum(values - spread, 0) if name == "amplitude" else values - spread
+        axes.fill_between(frequency, lower, values + spread, where=finite,
+                          color=color, alpha=0.15, lw=0)
+    results = result > 0
+    # NaN at the points that are not results makes matplotlib break the line there, so no
+    # segment ever passes through (or bridges over) a point that is not a result.
+    joined = np.where(results, values, np.nan)
+    axes.plot(frequency, joined, ls=line, marker="o", markevery=list(result == 1), ms=4,
+              color=color, label=label)
+    axes.plot(frequency[result == 2], values[result == 2], "D", ms=4.5, color=color)
     if ci is not None:
-        axes.errorbar(frequency[converged], values[converged], yerr=ci[converged], fmt="none",
+        axes.errorbar(frequency[results], values[results], yerr=ci[results], fmt="none",
                       ecolor=color, elinewidth=1, capsize=2)
-    axes.plot(frequency[~converged], values[~converged], "o", ms=4, mfc="none", color=color)
+    axes.plot(frequency[~results], values[~results], "o", ms=4, mfc="none", color=color)
+
+
+def plot_fills(axes, frequency, values, branch, color):
+    """Draws every fill's own value as a small marker whose shape is its branch."""
+    shape = branch.astype(int) % len(BRANCH_MARKERS)
+    for k in np.unique(shape):
+        axes.plot(frequency[shape == k], values[shape == k], BRANCH_MARKERS[k], ms=4, mew=0.8,
+                  alpha=0.5, color=color)
+
+
+def peak_of(data):
+    """The file's peak as the /frf peak_* attributes give it (amplitude, amplitude_ci,
+    frequency, upper, sweep; amplitude NaN without a result point), computed from the columns
+    for files without them (upper, the highest single fill, NaN without /frf/fills)."""
+    if data["peak"] is not None:
+        return data["peak"]
+    nan = float("nan")
+    results = data["result"] > 0
+    if not results.any():
+        return {"amplitude": nan}
+    amplitude, ci, fills = data["amplitude"], data["amplitude_ci"], data["fills"]
+    peak = np.flatnonzero(results)[np.argmax(amplitude[results])]
+    upper = nan
+    if fills is not None:
+        points = set(zip(data["frequency"][results], data["sweep"][results]))
+        kept = np.array([point in points for point in zip(fills["frequency"], fills["sweep"])])
+        if kept.any():
+            upper = max(amplitude[peak], fills["amplitude"][kept].max())
+    return {"amplitude": amplitude[peak], "amplitude_ci": nan if ci is None else ci[peak],
+            "frequency": data["frequency"][peak], "upper": upper, "sweep": data["sweep"][peak]}
 
 
 def print_peak(path, data):
-    """Prints the peak amplitude over the converged points, with its CI when the file has one."""
-    converged = data["converged"]
-    if not converged.any():
-        print(f"{path}: peak amplitude: no converged point "
-              f"(0 of {converged.size} frequencies converged)")
+    """Prints the peak amplitude over the result points, with its CI and the highest single
+    fill when known, and the highest point that is not a result when its mean is higher."""
+    results, amplitude, ci = data["result"] > 0, data["amplitude"], data["amplitude_ci"]
+    peak = peak_of(data)
+    if not np.isfinite(peak["amplitude"]):
+        print(f"{path}: peak amplitude: no result point "
+              f"({results.sum()} of {results.size} points are results)")
         return
-    indices = np.flatnonzero(converged)
-    peak = indices[np.argmax(data["amplitude"][indices])]
-    ci = data["amplitude_ci"]
-    spread = (f" ± {ci[peak] * 1e3:.2g}" if ci is not None and np.isfinite(ci[peak])
-              else " (no CI)")
-    print(f"{path}: peak amplitude {data['amplitude'][peak] * 1e3:.4g}{spread} mm at "
-          f"{data['frequency'][peak]:.4g} Hz (converged points only)")
+    both = (data["sweep"] > 0).any() and (data["sweep"] < 0).any()
+
+    def mm(value, half_width):
+        spread = f" ± {half_width * 1e3:.3g}" if np.isfinite(half_width) else " (no CI)"
+        return f"{value * 1e3:.4g}{spread} mm"
+
+    def at(frequency, sweep):
+        named = both and np.isfinite(sweep)
+        return f"{frequency:.4g} Hz" + (f" ({'up' if sweep > 0 else 'down'} sweep)" if named
+                                       else "")
+
+    upper = peak.get("upper", float("nan"))
+    print(f"{path}: peak amplitude {mm(peak['amplitude'], peak.get('amplitude_ci', np.nan))} at "
+          f"{at(peak['frequency'], peak.get('sweep', np.nan))} over the result points"
+          + (f" (highest single fill {upper * 1e3:.4g} mm)" if np.isfinite(upper) else ""))
+    others = np.flatnonzero(~results & np.isfinite(amplitude))
+    if others.size:
+        higher = others[np.argmax(amplitude[others])]
+        if amplitude[higher] > peak["amplitude"]:
+            print(f"  higher, NOT a result: "
+                  f"{mm(amplitude[higher], np.nan if ci is None else ci[higher])} at "
+                  f"{at(data['frequency'][higher], data['sweep'][higher])}")
 
 
 def main(argv=None):
@@ -243,63 +377,85 @@ def main(argv=None):
         sys.exit(f"plot_frf.py: {args.output}: the output must end in {', '.join(FORMATS)}")
 
     measured = read_measured(args.measured) if args.measured else None
-    figure, (amplitude_axes, phase_axes) = plt.subplots(2, 1, sharex=True, figsize=(7, 6.5))
-    any_unconverged = any_disagree = False
+    figure, (amplitude_axes, phase_axes) = plt.subplots(2, 1, sharex=True, figsize=(7, 7.5))
+    shown = set()  # the legend's grey entries this figure needs
     # Displacement in mm, or receptance in um/N (the same numbers per newton).
     unit = "receptance (\u00b5m/N)" if args.receptance else "displacement amplitude (mm)"
     for index, path in enumerate(args.files):
         data = read_frf(path)
-        frequency, converged = data["frequency"], data["converged"]
+        frequency, result, fills = data["frequency"], data["result"], data["fills"]
         color = f"C{index % 10}"
-        ci = data["amplitude_ci"]
         scale = 1e6 / force_amplitude(path) if args.receptance else 1e3
-        plot_panel(amplitude_axes, frequency, data["amplitude"] * scale,
-                   None if ci is None else ci * scale, converged, color, data["label"])
+
         if args.bare and index == 0:
             dense = np.linspace(frequency.min(), frequency.max(), 400)
             amplitude, phase = bare_response(path, dense)
-            bare_scale = 1e6 / force_amplitude(path) if args.receptance else 1e3
-            amplitude_axes.plot(dense, amplitude * bare_scale, "k-", lw=0.8,
+            amplitude_axes.plot(dense, amplitude * scale, "k-", lw=0.8,
                                 label="bare structure (analytic)")
             phase_axes.plot(dense, phase, "k-", lw=0.8)
-        plot_panel(phase_axes, frequency, data["phase"], data["phase_ci"], converged, color, None)
-        any_unconverged |= bool((~converged).any())
+        print_peak(path, data)
+        for name, line, rows, fill_rows in sweeps(data):
+            label = data["label"] + (f" ({name})" if name else "")
+            part = {key: values[rows] for key, values in data.items()
+                    if isinstance(values, np.ndarray)}
+            plot_panel(amplitude_axes, part, "amplitude", scale, color, label, line)
+            plot_panel(phase_axes, part, "phase", 1, color, None, line)
+            if fills is not None:
+                plot_fills(amplitude_axes, fills["frequency"][fill_rows],
+                           fills["amplitude"][fill_rows] * scale, fills["branch"][fill_rows],
+                           color)
+                plot_fills(phase_axes, fills["frequency"][fill_rows], fills["phase"][fill_rows],
+                           fills["branch"][fill_rows], color)
+            if measured is not None:
+                where = path + (f" ({name})" if name else "")
+                kept = rows & (result > 0)
+                if not kept.any():
+                    print(f"{where}: RMS relative difference to {args.measured}: no result "
+                          f"point to compare")
+                    continue
+                rms, used, outside = rms_relative_difference(
+                    frequency[kept], data["amplitude"][kept], *measured)
+                print(f"{where}: RMS relative difference to {args.measured}: {rms:.4g} "
+                      f"({used} measured points, {outside} outside {frequency[kept][0]:.4g}-"
+                      f"{frequency[kept][-1]:.4g} Hz left out; result points only)")
+        spread = data["amplitude_spread"]
+        shown |= {NOT_RESULT} if (result == 0).any() else set()
+        shown |= {BRANCHED} if (result == 2).any() else set()
+        shown |= {SPREAD} if spread is not None and np.isfinite(spread).any() else set()
+        shown |= {FILL} if fills is not None else set()
         for f, amplitude, phase in data["runs"]:
             amplitude_axes.plot(f, amplitude * scale, "x", ms=4, color=color)
             phase_axes.plot(f, phase, "x", ms=4, color=color)
-        any_disagree = any_disagree or bool(data["runs"])
-        print_peak(path, data)
-        if measured is not None:
-            if not converged.any():
-                print(f"{path}: RMS relative difference to {args.measured}: no converged point "
-                      f"to compare")
-                continue
-            kept = frequency[converged]
-            rms, used, outside = rms_relative_difference(kept, data["amplitude"][converged],
-                                                         *measured)
-            print(f"{path}: RMS relative difference to {args.measured}: {rms:.4g} "
-                  f"({used} measured points, {outside} outside {kept[0]:.4g}-"
-                  f"{kept[-1]:.4g} Hz left out; converged points only)")
+            shown.add(DISAGREE)
     if measured is not None:
         measured_scale = 1e6 / force_amplitude(args.files[0]) if args.receptance else 1e3
         amplitude_axes.plot(measured[0], measured[1] * measured_scale, "ks--", mfc="none",
                             label="measured")
     handles, labels = amplitude_axes.get_legend_handles_labels()
-    if any_unconverged:
-        # One grey entry for all files: the hollow marker means the same whatever the colour.
-        handles.append(Line2D([], [], ls="none", marker="o", ms=4, mfc="none", color="0.4"))
-        labels.append(NOT_CONVERGED)
-    if any_disagree:
-        handles.append(Line2D([], [], ls="none", marker="x", ms=4, color="0.4"))
-        labels.append(DISAGREE)
-    amplitude_axes.legend(handles, labels, fontsize="small")
+    # One grey entry each for all files: the markers and the band mean the same whatever the
+    # colour.
+    grey = "0.4"
+    for entry, handle in (
+            (NOT_RESULT, Line2D([], [], ls="none", marker="o", ms=4, mfc="none", color=grey)),
+            (BRANCHED, Line2D([], [], ls="none", marker="D", ms=4.5, color=grey)),
+            (SPREAD, Patch(color=grey, alpha=0.25, lw=0)),
+            (FILL, Line2D([], [], ls="none", marker="x", ms=4, mew=0.8, color=grey)),
+            (DISAGREE, Line2D([], [], ls="none", marker="x", ms=4, color=grey))):
+        if entry in shown:
+            handles.append(handle)
+            labels.append(entry)
+    # Below the panels, where it covers no data.
+    legend = figure.legend(handles, labels, loc="lower center", ncol=2, fontsize="small",
+                           frameon=False)
     amplitude_axes.set_ylabel(unit)
     phase_axes.set_ylabel("phase (rad)")
     phase_axes.set_xlabel("frequency (Hz)")
     for axes in (amplitude_axes, phase_axes):
         axes.grid(True, alpha=0.3)
-    amplitude_axes.set_title("first harmonic; error bars: 95 % confidence", fontsize="small")
-    figure.tight_layout()
+    amplitude_axes.set_title("first harmonic, mean over the fills; error bars: its 95 % "
+                             "confidence", fontsize="small")
+    figure.canvas.draw()  # sizes the legend
+    figure.tight_layout(rect=(0, legend.get_window_extent().height / figure.bbox.height, 1, 1))
     figure.savefig(args.output, dpi=200)
     plt.close(figure)
     print(f"wrote {args.output}")

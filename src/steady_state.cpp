@@ -413,7 +413,10 @@ Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance, b
       const FillValue &a = fills[std::size_t(i)], &b = fills[std::size_t(j)];
       const double gap = std::fabs(std::abs(a.harmonic) - std::abs(b.harmonic));
       const double larger = std::max(std::abs(a.harmonic), std::abs(b.harmonic));
-      if (gap <= tolerance * larger || gap <= a.amplitude_ci + b.amplitude_ci)
+      // A fill without an interval of its own (too correlated for batch means) links by the
+      // tolerance alone, or it would join every state into one.
+      const double own = a.amplitude_ci + b.amplitude_ci;
+      if (gap <= tolerance * larger || (std::isfinite(own) && gap <= own))
         root[std::size_t(find(i))] = find(j);
     }
   std::vector<std::vector<int>> groups;

@@ -298,7 +298,7 @@ Stationary summarise(const std::vector<std::complex<double>>& series,
   const bool drift_p =
       significant_slope(kept_p, &slope_p) && std::fabs(slope_p) * retained > relevant;
   s.trend = drift_a || drift_p;
-  s.stationary = n >= criteria.min_periods && !s.trend && s.batches >= criteria.min_batches;
+  s.stationary = n >= criteria.min_periods && !s.trend && s.batches >= 2;
   return s;
 }
 

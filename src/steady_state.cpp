@@ -480,7 +480,8 @@ Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance, b
   }
   if (e.result == PointResult::branches) {
     std::snprintf(text, sizeof text, "%zu branches", e.branch.size());
-    e.reason = text;
+    // Fills that disagree beyond their intervals with no gap wider than the tolerance.
+    e.reason = e.branch.size() > 1 ? text : "a continuum of states";
   }
   return e;
 }

@@ -34,6 +34,13 @@ for format in png pdf; do
   done
 done
 
+# frf_table.py: one row per point of /frf, and a file against itself as its own reference:
+# no difference, within its interval and 3 %, its prediction interval holding its own fills.
+/usr/bin/python3 "$root/validation/frf_table.py" frf.h5 --reference frf.h5 > table.md
+points=$(/usr/bin/python3 -c 'import h5py, sys; print(h5py.File(sys.argv[1])["frf/frequency"].size)' frf.h5)
+[ "$(grep -c '^| [0-9.]* | [012] |' table.md)" -eq "$points" ] || { cat table.md; exit 1; }
+[ "$(grep -c '| +0.0 % | yes | yes | yes |$' table.md)" -eq "$points" ] || { cat table.md; exit 1; }
+
 # An ensemble FRF written here: two sweeps, four fills a point, two branches at 14.5 Hz down
 # (result 2, the peak: 0.878 ± 0.183 mm, highest fill 1.042 mm) and at 15 Hz down, which is
 # not a result and has a higher mean (1.84 ± 0.43 mm); and an older file without sweep,

@@ -226,7 +226,10 @@ Stationary FrequencyRun::judge() const {
   // ensemble, and one fill can be a branch of its own (src/steady_state.hpp).
   // A fixed run is judged once, on what it has: an interval from two batches is wide but
   // says what the periods show.
-  const SteadyStateCriteria criteria{settle.tolerance, settle.min_periods,
+  // min_periods counts the measured periods; where the refinement took some of max_periods,
+  // what is left of them is enough (min_periods = max_periods asks for a fixed dwell).
+  const int min_periods = std::min(settle.min_periods, o.max_periods - o.settled_from);
+  const SteadyStateCriteria criteria{settle.tolerance, min_periods,
                                      o.fixed ? std::min(settle.batches, 2) : settle.batches,
                                      !o.fixed};
   Stationary s = analyse_periods(

@@ -443,6 +443,23 @@ TEST_CASE("fills that disagree are joined by more fills, the same on one job and
   }
 }
 
+// settle.min_periods = max_periods asks for a fixed dwell: the predicted start's refinement
+// takes some of those periods, and what is left of them is judged (it used to be refused as
+// "fewer than min_periods" at every point, whatever the fills did).
+TEST_CASE("a fixed dwell (min_periods = max_periods) with predicted starts is judged at its end") {
+  Sandbox box;
+  const std::string fixed =
+      tiny_deck(box, "fixed.toml", "settle = { min_periods = 3, max_periods = 4",
+                "settle = { min_periods = 30, max_periods = 30");
+  std::string log;
+  REQUIRE(box.pdsim("run --threads 1 -o fixed.h5 " + fixed, &log) == 0);
+  CAPTURE(log);
+  CHECK(log.find("fewer than min_periods") == std::string::npos);
+  const pdsim::Results r = pdsim::read_results((box.dir / "fixed.h5").string());
+  for (int periods : r.fills.periods) CHECK(periods == 30);
+  for (int settled : r.fills.settled) CHECK(settled == 1);
+}
+
 // Three realisations on two jobs: a run done early keeps up with one still going while the third
 // waits for a worker; the periods each run makes do not depend on that schedule.
 TEST_CASE("three realisations give the same periods on one job and on two") {

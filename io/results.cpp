@@ -244,7 +244,10 @@ std::vector<char> file_image(const std::string& file, const Results& r, bool com
         {"peak_amplitude_ci", peak.found ? peak.amplitude_ci : nan},
         {"peak_frequency", peak.found ? peak.frequency : nan},
         {"peak_upper", peak.found ? peak.upper : nan},
-        {"peak_sweep", peak.found ? double(peak.sweep) : nan}};
+        {"peak_sweep", peak.found ? double(peak.sweep) : nan},
+        {"higher_unresolved_amplitude", peak.higher ? peak.higher_amplitude : nan},
+        {"higher_unresolved_amplitude_ci", peak.higher ? peak.higher_amplitude_ci : nan},
+        {"higher_unresolved_frequency", peak.higher ? peak.higher_frequency : nan}};
     for (const auto& [name, value] : attributes)
       write_attribute(frf.id(), name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value, file, "/frf");
     if (!r.fills.frequency.empty())
@@ -627,6 +630,17 @@ FrfPeak frf_peak(const FrfTable& frf, const FillTable& fills) {
     peak.amplitude_ci = frf.amplitude_ci[i];
     peak.frequency = frf.frequency[i];
     peak.sweep = i < frf.sweep.size() ? frf.sweep[i] : 1;
+  }
+  for (std::size_t i = 0; i < frf.frequency.size(); ++i) {
+    const bool result = i < frf.result.size() ? frf.result[i] > 0 : frf.converged[i] != 0;
+    if (result || (peak.found && frf.amplitude[i] <= peak.amplitude) ||
+        (peak.higher && frf.amplitude[i] <= peak.higher_amplitude))
+      continue;
+    peak.higher = true;
+    peak.higher_amplitude = frf.amplitude[i];
+    peak.higher_amplitude_ci = frf.amplitude_ci[i];
+    peak.higher_frequency = frf.frequency[i];
+    peak.higher_sweep = i < frf.sweep.size() ? frf.sweep[i] : 1;
   }
   // The highest single fill at a result point; a file without fills: the highest mean.
   peak.upper = peak.amplitude;

@@ -145,10 +145,15 @@ void branch_columns(T& t, F&& f) {
 // The headline of an FRF, over every result point (/frf attributes, the run's summary line and
 // a sweep's summary.csv all take it from here): the highest ensemble mean amplitude with its
 // interval and frequency, and the highest single fill at a result point. NaN without results.
+// So that the headline never hides the hard part, also the highest mean at a point that is not
+// a result when it is above that peak (or there are no results).
 struct FrfPeak {
   double amplitude = 0, amplitude_ci = 0, frequency = 0, upper = 0;
   int sweep = 0;
   bool found = false;
+  double higher_amplitude = 0, higher_amplitude_ci = 0, higher_frequency = 0;
+  int higher_sweep = 0;
+  bool higher = false;
 };
 FrfPeak frf_peak(const FrfTable& frf, const FillTable& fills);
 

@@ -1082,14 +1082,9 @@ std::string summary_line(const Results& r, const std::string& path, const Deck& 
         << " mm at " << peak.frequency << " Hz (the mean over its fills; highest single fill "
         << 1e3 * peak.upper << " mm)";
     // The hard part stays in the headline: the largest mean where the point is not a result.
-    std::size_t hardest = f.frequency.size();
-    for (std::size_t i = 0; i < f.frequency.size(); ++i)
-      if (f.result[i] == 0 &&
-          (hardest == f.frequency.size() || f.amplitude[i] > f.amplitude[hardest]))
-        hardest = i;
-    if (hardest < f.frequency.size() && (!peak.found || f.amplitude[hardest] > peak.amplitude))
-      s << "; HIGHER where not a result: " << 1e3 * f.amplitude[hardest] << " +- "
-        << 1e3 * f.amplitude_ci[hardest] << " mm at " << f.frequency[hardest] << " Hz";
+    if (peak.higher)
+      s << "; HIGHER where not a result: " << 1e3 * peak.higher_amplitude << " +- "
+        << 1e3 * peak.higher_amplitude_ci << " mm at " << peak.higher_frequency << " Hz";
     if (results < static_cast<int>(f.frequency.size()))
       s << "; NOT results at " << listed(f.frequency, f.sweep, f.result, 0)
         << " Hz (a fill still drifting at settle.max_periods, or settle.max_realisations "

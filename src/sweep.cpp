@@ -118,7 +118,9 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
   out << "point";
   for (const auto& key : deck.sweep.keys) out << "," << csv(key);
   out << ",status,file,wall_time_s,particle_steps_per_s";
-  if (frf) out << ",peak_amplitude_m,peak_frequency_hz,results";
+  if (frf)
+    out << ",peak_amplitude_m,peak_frequency_hz,results,higher_unresolved_amplitude_m,"
+           "higher_unresolved_frequency_hz";
   if (prescribed) out << ",peak_power_w,peak_power_frequency_hz";
   out << "\n";
   for (const Point& p : points) {
@@ -158,6 +160,9 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
       int converged = 0;
       for (int c : r.frf.converged) converged += c;
       out << "," << converged << "/" << r.frf.converged.size();
+      // The hard part beside the headline: the highest mean where not a result, if higher.
+      out << "," << number(peak.higher ? peak.higher_amplitude : std::nan(""), 6) << ","
+          << number(peak.higher ? peak.higher_frequency : std::nan(""), 6);
     }
     if (prescribed && !r.prescribed.frequency.empty())
       peak_of(r.prescribed.dissipated_power, r.prescribed.frequency);

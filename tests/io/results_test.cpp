@@ -393,3 +393,38 @@ TEST_CASE("results: h5dump finds the object names of the brief's output contract
   CHECK(version->find("\"0.1.0-g1234567-dirty\"") != std::string::npos);
   fs::remove_all(dir);
 }
+
+// The headline over the result points, and beside it the highest mean where a point is not a
+// result when it is higher (the hard part must not hide): three points, the middle one the
+// highest and not a result.
+TEST_CASE("frf_peak: the peak over result points and the higher point that is not a result") {
+  pdsim::FrfTable frf;
+  frf.frequency = {14.0, 15.0, 16.0};
+  frf.amplitude = {1e-3, 3e-3, 2e-3};
+  frf.amplitude_ci = {1e-5, 5e-4, 2e-4};
+  frf.result = {1, 0, 2};
+  frf.converged = {1, 0, 1};
+  frf.sweep = {1, 1, 1};
+  pdsim::FillTable fills;
+  fills.frequency = {16.0, 16.0, 15.0};
+  fills.sweep = {1, 1, 1};
+  fills.amplitude = {1.5e-3, 2.5e-3, 4e-3};
+  const pdsim::FrfPeak peak = pdsim::frf_peak(frf, fills);
+  REQUIRE(peak.found);
+  CHECK(peak.amplitude == 2e-3);
+  CHECK(peak.frequency == 16.0);
+  CHECK(peak.upper == 2.5e-3);  // the fill at 15 Hz is at a point that is not a result
+  REQUIRE(peak.higher);
+  CHECK(peak.higher_amplitude == 3e-3);
+  CHECK(peak.higher_amplitude_ci == 5e-4);
+  CHECK(peak.higher_frequency == 15.0);
+  // Below the peak, a point that is not a result is no headline.
+  frf.amplitude[1] = 1.5e-3;
+  CHECK_FALSE(pdsim::frf_peak(frf, fills).higher);
+  // Without results, the highest mean is still said.
+  frf.result = {0, 0, 0};
+  const pdsim::FrfPeak none = pdsim::frf_peak(frf, fills);
+  CHECK_FALSE(none.found);
+  REQUIRE(none.higher);
+  CHECK(none.higher_frequency == 16.0);
+}

@@ -260,7 +260,9 @@ TEST_CASE("a sweep runs every point side by side and tabulates the analytical SD
     std::vector<std::string> cells;
     std::stringstream row(line);
     for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
-    REQUIRE(cells.size() == 9);
+    REQUIRE(cells.size() == 11);
+    CHECK(cells[8] == "1/1");
+    CHECK(cells[9] == "nan");  // every point a result: nothing higher that is not one
     CHECK(std::stod(cells[1]) == m);
     CHECK(cells[2] == "finished");
     CHECK(fs::exists(box.dir / "m_sweep" / cells[3]));

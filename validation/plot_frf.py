@@ -49,7 +49,8 @@ with both sweeps names the sweep after each frequency, e.g. "at 14.5 Hz (down sw
 When a point that is not a result has a higher mean than the peak, a second line gives the
 highest such point:
       higher, NOT a result: 1.84 ± 0.43 mm at 15 Hz
-A file without a result point prints "no result point (0 of N points are results)". A file
+A file without a result point prints "no result point (0 of N points are results)" and, on the
+second line, its highest mean all the same (as pdsim's summary line and frf_peak() do). A file
 without /frf (e.g. a prescribed-motion result, /prescribed) is an error (exit status 1).
 
 --receptance: amplitude per newton of drive (m/N, /meta/deck's excitation.amplitude), for
@@ -333,10 +334,6 @@ def print_peak(path, data):
     fill when known, and the highest point that is not a result when its mean is higher."""
     results, amplitude, ci = data["result"] > 0, data["amplitude"], data["amplitude_ci"]
     peak = peak_of(data)
-    if not np.isfinite(peak["amplitude"]):
-        print(f"{path}: peak amplitude: no result point "
-              f"({results.sum()} of {results.size} points are results)")
-        return
     both = (data["sweep"] > 0).any() and (data["sweep"] < 0).any()
 
     def mm(value, half_width):
@@ -348,14 +345,22 @@ def print_peak(path, data):
         return f"{frequency:.4g} Hz" + (f" ({'up' if sweep > 0 else 'down'} sweep)" if named
                                        else "")
 
+    found = np.isfinite(peak["amplitude"])
     upper = peak.get("upper", float("nan"))
-    print(f"{path}: peak amplitude {mm(peak['amplitude'], peak.get('amplitude_ci', np.nan))} at "
-          f"{at(peak['frequency'], peak.get('sweep', np.nan))} over the result points"
-          + (f" (highest single fill {upper * 1e3:.4g} mm)" if np.isfinite(upper) else ""))
+    if found:
+        print(f"{path}: peak amplitude "
+              f"{mm(peak['amplitude'], peak.get('amplitude_ci', np.nan))} at "
+              f"{at(peak['frequency'], peak.get('sweep', np.nan))} over the result points"
+              + (f" (highest single fill {upper * 1e3:.4g} mm)" if np.isfinite(upper) else ""))
+    else:
+        print(f"{path}: peak amplitude: no result point "
+              f"({results.sum()} of {results.size} points are results)")
+    # As frf_peak() in pdsim: the highest mean where not a result, when above the peak (or
+    # there is no result), so that the hard part is never left out.
     others = np.flatnonzero(~results & np.isfinite(amplitude))
     if others.size:
         higher = others[np.argmax(amplitude[others])]
-        if amplitude[higher] > peak["amplitude"]:
+        if not found or amplitude[higher] > peak["amplitude"]:
             print(f"  higher, NOT a result: "
                   f"{mm(amplitude[higher], np.nan if ci is None else ci[higher])} at "
                   f"{at(data['frequency'][higher], data['sweep'][higher])}")

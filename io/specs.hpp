@@ -25,6 +25,11 @@ enum class ExcitationInput { force, base_displacement, base_acceleration };
 // frequency from the settled bed with the predicted structure state, so that they run side by
 // side.
 enum class FrequencyStart { predicted, carried, independent };
+// Their names in decks (`start`) and in /meta.
+constexpr const char* kStartNames[] = {"predicted", "carried", "independent"};
+inline const char* start_name(FrequencyStart s) {
+  return kStartNames[static_cast<int>(s)];
+}
 enum class CouplingScheme { loose, interleaved, tight };
 
 struct ContainerSpec {

@@ -6,6 +6,7 @@
 
 #include "pdsim_version.hpp"
 #include "src/bench.hpp"
+#include "src/check_report.hpp"
 #include "src/run.hpp"
 #include "src/sweep.hpp"
 #include "structure/structure.hpp"

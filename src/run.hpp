@@ -1,5 +1,5 @@
-// Running a deck: excitation drivers (stepped sine, sine, free decay, prescribed motion),
-// checkpoints after every finished frequency, provenance, and the text of `pdsim check`.
+// Running a deck: the output checked and locked before any work, the fills planned and driven
+// (src/driver.hpp), the file written and the summary line.
 #pragma once
 
 #include <optional>
@@ -37,11 +37,5 @@ RunReport run_deck(const Deck& deck, const RunOptions& options);
 // Runs the deck and returns the results without writing a file (tests, benchmarks); `jobs` runs
 // side by side when the deck has several (independent frequencies, realisations).
 Results simulate(const Deck& deck, const Scene& scene, bool quiet = true, int jobs = 1);
-
-// `v` in at most `precision` significant digits (messages, tables).
-std::string number(double v, int precision = 4);
-
-// The derived quantities `pdsim check` prints.
-std::string check_report(const Deck& deck, const Scene& scene);
 
 }  // namespace pdsim

@@ -1,6 +1,7 @@
 #include "src/scene.hpp"
 
 #include "io/deck.hpp"
+#include "src/format.hpp"
 #include "structure/structure.hpp"
 
 #include <algorithm>
@@ -87,13 +88,6 @@ double container_volume(const ContainerSpec& c) {
                                         : kPi * c.radius * c.radius * c.height;
 }
 
-std::string format(double v) {
-  std::ostringstream s;
-  s.precision(4);
-  s << v;
-  return s.str();
-}
-
 }  // namespace
 
 // Largest fill fraction a random fill is tried at.
@@ -141,8 +135,8 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
   const double fraction = volume / container_volume(c);
   if (fraction > kRandomFillLimit)
     throw InputError(where, key,
-                     "a random fill of fill fraction " + format(fraction) + ": expected at most " +
-                         format(kRandomFillLimit) +
+                     "a random fill of fill fraction " + number(fraction) + ": expected at most " +
+                         number(kRandomFillLimit) +
                          " (random placement jams near 0.38); use fill = \"lattice\", fewer "
                          "particles or a larger container");
   std::mt19937_64 gen(damper.particles.seed);
@@ -163,7 +157,7 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
       if (++attempts > max_attempts)
         throw InputError(where, key,
                          "random fill placed only " + std::to_string(p) + " of " +
-                             std::to_string(n) + " particles (fill fraction " + format(fraction) +
+                             std::to_string(n) + " particles (fill fraction " + number(fraction) +
                              "); use fill = \"lattice\", fewer particles or a larger container");
       const Vec3 q{(2 * uniform(gen) - 1) * (g.half_size.x - r),
                    (2 * uniform(gen) - 1) * (g.half_size.y - r),
@@ -213,20 +207,20 @@ void check_feasible(const Deck& deck, const Scene& s) {
   if (!(s.dt >= kMinDt))
     throw InputError(
         deck.where(step_key), step_key,
-        "a time step of " + format(s.dt) + " s: expected at least " + format(kMinDt) + " s");
+        "a time step of " + number(s.dt) + " s: expected at least " + number(kMinDt) + " s");
   const double every = deck.coupling.every;
   for (double f : frequencies) {
     if (1.0 / (32 * f) < kMinDt)  // a run takes at least 32 steps a period
       throw InputError(deck.where(f_key), f_key,
-                       "a frequency of " + format(f) + " Hz needs steps shorter than " +
-                           format(kMinDt) + " s: expected at most " + format(1 / (32 * kMinDt)) +
+                       "a frequency of " + number(f) + " Hz needs steps shorter than " +
+                           number(kMinDt) + " s: expected at most " + number(1 / (32 * kMinDt)) +
                            " Hz");
     const double steps = std::ceil(1.0 / (f * s.dt));
     if (steps * every > kMaxStepsPerPeriod)
       throw InputError(deck.where(dt_key), dt_key,
-                       "dt = " + format(s.dt) + " s takes " + format(steps) +
-                           " steps a period at " + format(f) + " Hz: expected at most " +
-                           format(kMaxStepsPerPeriod) + " (raise dt or the frequency)");
+                       "dt = " + number(s.dt) + " s takes " + number(steps) +
+                           " steps a period at " + number(f) + " Hz: expected at most " +
+                           number(kMaxStepsPerPeriod) + " (raise dt or the frequency)");
   }
   if (!s.structure) return;
   const LinearStructure& st = *s.structure;
@@ -297,9 +291,9 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     const double smallest_extent = smallest_inner_size(e.geometry);
     if (2 * r_max >= smallest_extent)
       throw InputError(deck.where(key + ".particles"), key + ".particles",
-                       "particle diameter " + format(2 * r_max) +
+                       "particle diameter " + number(2 * r_max) +
                            " m does not fit in the container (smallest inner size " +
-                           format(smallest_extent) + " m)");
+                           number(smallest_extent) + " m)");
     const std::vector<Vec3> centres =
         fill_particles(d, e.radius, deck.where(key + ".particles"), key + ".particles");
     double volume = 0;
@@ -323,7 +317,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
       if (safety <= 0) safety = 0.02;
       s.dt = safety * s.contact_time;
       s.dt_limit = s.contact_time / 8;
-      s.dt_basis = format(safety) + " x linear contact time " + format(s.contact_time) + " s";
+      s.dt_basis = number(safety) + " x linear contact time " + number(s.contact_time) + " s";
     } else {
       s.rayleigh_time = rayleigh_time(r_min, density_min, contact.young, contact.poisson);
       // Hertz binary contact time at 1 m/s: 2.87 (m*^2 / (R* E*^2 v))^(1/5) (Johnson 1985).
@@ -333,20 +327,20 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
       if (safety <= 0) safety = 0.15;
       s.dt = safety * s.rayleigh_time;
       s.dt_limit = 0.4 * s.rayleigh_time;
-      s.dt_basis = format(safety) + " x Rayleigh time " + format(s.rayleigh_time) + " s";
+      s.dt_basis = number(safety) + " x Rayleigh time " + number(s.rayleigh_time) + " s";
     }
     if (deck.solver.dt > 0) {
       if (deck.solver.dt > s.dt_limit && !deck.solver.allow_unstable)
         throw InputError(deck.where("solver.dt"), "solver.dt",
-                         "dt = " + format(deck.solver.dt) + " s exceeds the stability limit " +
-                             format(s.dt_limit) +
+                         "dt = " + number(deck.solver.dt) + " s exceeds the stability limit " +
+                             number(s.dt_limit) +
                              " s of this contact model; lower it, use dt = \"auto\", or set "
                              "solver.allow_unstable = true");
       s.dt = deck.solver.dt;
       s.dt_basis = "given in the deck";
       if (s.dt > s.dt_limit)
-        s.warning = "dt = " + format(s.dt) + " s is " + format(s.dt / s.dt_limit) +
-                    " times the stability limit " + format(s.dt_limit) +
+        s.warning = "dt = " + number(s.dt) + " s is " + number(s.dt / s.dt_limit) +
+                    " times the stability limit " + number(s.dt_limit) +
                     " s (solver.allow_unstable): contacts are under-resolved and results may "
                     "be shifted or blow up";
     }
@@ -383,7 +377,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
                        "interleaved coupling (the default) needs every structural mode resolved "
                        "by the exchange interval (omega h < 2), but the highest mode has omega "
                        "h = " +
-                           format(omega_max * h) +
+                           number(omega_max * h) +
                            "; keep the low modes with structure.modes = N, or use scheme = "
                            "\"loose\" or \"tight\"");
   }

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "io/results.hpp"
+#include "src/format.hpp"
 #include "src/run.hpp"
 #include "src/scene.hpp"
 

@@ -16,7 +16,8 @@
 #include <vector>
 
 #include "io/results.hpp"
-#include "src/run.hpp"  // number(), as the log writes frequencies
+#include "src/format.hpp"  // number(), as the log writes frequencies
+#include "src/run.hpp"
 
 namespace fs = std::filesystem;
 

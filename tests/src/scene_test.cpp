@@ -4,6 +4,7 @@
 #include <cmath>
 #include <string>
 
+#include "src/check_report.hpp"
 #include "src/run.hpp"
 #include "src/scene.hpp"
 

@@ -1,0 +1,14 @@
+// A settled bed kept in a file (bed.file), and what decides whether it fits a deck.
+#pragma once
+
+#include <string>
+
+#include "io/deck.hpp"
+#include "src/scene.hpp"
+
+namespace pdsim {
+
+// Everything that decides a settled bed: a bed file made for other particles is refused.
+std::string bed_fingerprint(const Deck& deck, const Scene& scene);
+
+}  // namespace pdsim

@@ -1,0 +1,90 @@
+#include "src/check_report.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "src/format.hpp"
+#include "src/frequency_run.hpp"
+
+namespace pdsim {
+
+std::string check_report(const Deck& deck, const Scene& scene) {
+  std::ostringstream s;
+  s.precision(5);
+  s << "deck: " << deck.path << (deck.title.empty() ? "" : " (" + deck.title + ")") << "\n";
+  double structure_mass = 0;
+  if (deck.structure.kind != StructureKind::none) {
+    const std::vector<double>& f = scene.natural_hz;
+    structure_mass =
+        deck.structure.kind == StructureKind::sdof
+            ? deck.structure.mass
+            : deck.structure.beam.density * deck.structure.beam.area * deck.structure.beam.length;
+    s << "structure: " << (deck.structure.kind == StructureKind::sdof ? "sdof" : "beam")
+      << ", mass " << structure_mass << " kg, first natural frequency " << f.front() << " Hz\n";
+  } else {
+    s << "structure: none (prescribed container motion)\n";
+  }
+  double steps_per_second = 0;
+  long total_particles = 0;
+  for (std::size_t k = 0; k < scene.dampers.size(); ++k) {
+    const DamperScene& d = scene.dampers[k];
+    const auto n = d.engine.particles.size();
+    total_particles += static_cast<long>(n);
+    s << "damper " << k << ": " << n << " particles, mass " << d.particle_mass << " kg ("
+      << d.particle_mass / static_cast<double>(n) << " kg each), fill fraction " << d.fill_fraction;
+    if (structure_mass > 0) s << ", mass ratio " << d.particle_mass / structure_mass;
+    s << "\n  kernel variant: " << variant_name(d.engine) << "\n";
+  }
+  if (!scene.dampers.empty()) {
+    s << "contact time: " << scene.contact_time << " s"
+      << (deck.contact.model == NormalModel::hertz ? " (Hertz, binary impact at 1 m/s)" : "")
+      << "\n";
+    if (scene.rayleigh_time > 0) s << "Rayleigh time: " << scene.rayleigh_time << " s\n";
+    s << "dt: " << scene.dt << " s (" << scene.dt_basis << "; limit " << scene.dt_limit << " s)\n";
+    if (!scene.warning.empty()) s << "WARNING: " << scene.warning << "\n";
+    steps_per_second = 1.0 / scene.dt;
+  }
+  s << "backend: " << backend_name(scene.backend) << " (" << scene.backend_reason << ")\n";
+  if (scene.highest_frequency() > 0) {
+    s << "steps per period: "
+      << static_cast<long>(std::ceil(1.0 / (scene.highest_frequency() * scene.dt))) << " at "
+      << scene.highest_frequency() << " Hz\n";
+  }
+  const ExcitationSpec& x = deck.excitation;
+  const SettleSpec& settle = x.settle;
+  const bool judged = x.kind != ExcitationKind::free_decay && !fixed_duration(x);
+  if (judged)
+    s << "frequencies: " << x.frequencies.size() << ", start = " << start_name(x.start)
+      << "; steady when the 95 % interval is within " << 100 * settle.tolerance << " % ("
+      << settle.min_periods << " to " << settle.max_periods << " periods, " << settle.batches
+      << " batches; " << settle.realisations
+      << (settle.max_realisations > settle.realisations
+              ? " to " + std::to_string(settle.max_realisations) +
+                    " fills, added where they disagree"
+          : settle.realisations > 1 ? " fills"
+                                    : " fill")
+      << ")\n";
+  if (deck.bed.settle)
+    s << "bed: settled under gravity first, until no particle moves faster than " << deck.bed.speed
+      << " m/s for " << kBedHold_s << " s (at most " << deck.bed.max_time << " s)"
+      << (deck.bed.file.empty() ? "" : "; kept in " + deck.bed.file) << "\n";
+  // Estimated cost: simulated time x steps/s x particles, at an assumed 1e7 particle-steps/s.
+  double simulated = 0;
+  if (judged)
+    for (double f :
+         (x.frequencies.empty() ? std::vector<double>{x.motion.frequency} : x.frequencies))
+      simulated += settle.max_realisations * settle.max_periods / f;
+  else
+    simulated = x.duration * static_cast<double>(std::max<std::size_t>(1, x.frequencies.size()));
+  s << "simulated time: at most " << simulated << " s";
+  if (total_particles > 0) {
+    const double particle_steps =
+        simulated * steps_per_second * static_cast<double>(total_particles);
+    s << ", at most " << number(particle_steps, 3) << " particle-steps (about "
+      << number(particle_steps / 1e7, 2) << " s at 1e7 particle-steps/s)";
+  }
+  s << "\n";
+  return s.str();
+}
+
+}  // namespace pdsim

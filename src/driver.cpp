@@ -1,0 +1,704 @@
+#include "src/driver.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "pdsim_version.hpp"
+#include "src/bed_file.hpp"
+#include "src/format.hpp"
+#include "src/frequency_run.hpp"
+#include "src/interrupt.hpp"
+#include "src/point_checkpoint.hpp"
+#include "src/point_rows.hpp"
+#include "src/progress.hpp"
+
+namespace pdsim {
+
+class Driver::Impl {
+ public:
+  Impl(const Deck& deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
+       std::string dump_path)
+      : deck_(deck),
+        make_scene_(std::move(make_scene)),
+        jobs_(jobs),
+        quiet_(quiet),
+        dump_path_(std::move(dump_path)) {
+    const ExcitationSpec& x = first.excitation;
+    const bool swept =
+        x.kind == ExcitationKind::stepped_sine || x.kind == ExcitationKind::prescribed;
+    fills_min_ = swept ? x.settle.realisations : 1;
+    fills_max_ = swept && !fixed_duration(x) ? x.settle.max_realisations : fills_min_;
+    frequencies_ = first.frequencies;
+    sweeps_ = x.sweeps;
+    sweeps_.resize(frequencies_.size(), 1);
+    const auto fills = static_cast<std::size_t>(fills_max_), steps = frequencies_.size();
+    scenes_.resize(fills);
+    scenes_[0] = std::make_unique<Scene>(std::move(first));
+    points_.assign(fills, std::vector<std::optional<FrequencyPoint>>(steps));
+    done_.assign(steps, 0);
+    beds_.resize(fills);
+    reports_.resize(fills);
+    runs_.resize(fills);
+    reached_.assign(fills, -1);
+    seen_.resize(fills);
+    bed_once_ = std::make_unique<std::once_flag[]>(fills);
+  }
+
+  void resume_from(const Results& partial) {
+    const StateArrays& c = partial.checkpoint;
+    results_.timeseries = partial.timeseries;
+    results_.energy = partial.energy;
+    results_.particles = partial.particles;
+    bed_from_file_ = c.count("bed.from_file") > 0;
+    const auto& done = state_values<std::int32_t>(c, "run.done");
+    if (done.size() != done_.size())
+      throw SimulationError("the checkpoint's run.done should hold one flag a frequency");
+    for (std::size_t s = 0; s < done.size(); ++s) done_[s] = done[s] != 0;
+    const auto filled = static_cast<std::size_t>(state_value<std::int32_t>(c, "run.fills"));
+    for (std::size_t r = 0; r < filled && r < beds_.size(); ++r) {
+      beds_[r] = get_state(c, "bed.r" + std::to_string(r) + ".");
+      if (!beds_[r].empty()) reports_[r] = unpack_report(c, r);
+      for (std::size_t i = 0; i < frequencies_.size(); ++i)
+        if (const auto it = c.find(point_key(r, i)); it != c.end()) {
+          points_[r][i] = unpack(state_values<double>(c, point_key(r, i)));
+          unpack_periods(state_values<double>(c, point_key(r, i) + ".periods"), *points_[r][i]);
+          reached_[r] = static_cast<long>(i);
+        }
+      if (StateArrays state = get_state(c, "task.r" + std::to_string(r) + "."); !state.empty())
+        task_states_[r] = std::move(state);
+    }
+    if (independent()) {  // fill 0's segments, by the frequency each sample was taken at
+      const TimeSeries& ts = partial.timeseries;
+      for (std::size_t j = 0; j < ts.frequency.size(); ++j) {
+        const auto at = std::find(frequencies_.begin(), frequencies_.end(), ts.frequency[j]);
+        if (at == frequencies_.end()) continue;
+        TimeSeries& segment = segments_[static_cast<std::size_t>(at - frequencies_.begin())];
+        std::vector<const std::vector<double>*> from;
+        timeseries_columns(ts, [&](const char*, const auto& column, const char*, const char*) {
+          from.push_back(&column);
+        });
+        std::size_t next = 0;
+        timeseries_columns(segment, [&](const char*, auto& column, const char*, const char*) {
+          column.push_back((*from[next++])[j]);
+        });
+      }
+    }
+    const auto& totals = state_values<double>(c, "run.totals");
+    particle_steps_ = static_cast<long long>(totals.at(0));
+    simulated_ = totals.at(1);
+    wall_before_ = totals.at(2);
+  }
+
+  Results run(const std::function<void(const Results&)>& checkpoint, int stop_after) {
+    started_ = Clock::now();
+    g_stop_runs = g_interrupted != 0;  // an interrupt before the start stops it at once
+    checkpoint_ = checkpoint;
+    stop_after_ = stop_after;
+    const ExcitationSpec& x = excitation();
+    if (x.kind == ExcitationKind::free_decay || x.kind == ExcitationKind::sine) {
+      Progress progress(quiet_, 1, 1.0, false);
+      FrequencyRun run(scene(0), [&](double f, double done) { progress.update(0, done, f); });
+      try {
+        reports_[0] = run.settle_bed();
+        if (x.kind == ExcitationKind::free_decay) {
+          run.run_free_decay();
+        } else {
+          points_[0][0] = run.run_frequency(x.frequency, FrequencyStart::carried);
+          done_[0] = 1;
+        }
+      } catch (const SimulationError& e) {
+        fail(run, 0, e);
+      }
+      results_.timeseries = run.timeseries();
+      results_.energy = run.energy();
+      results_.particles = run.particles();
+      Seen from_start;
+      account(run, from_start);
+      progress.finish();
+    } else {
+      run_tasks();
+    }
+    if (!stopped_) add_rows(results_);
+    wall_ = wall_before_ + std::chrono::duration<double>(Clock::now() - started_).count();
+    provenance(results_);
+    return results_;
+  }
+
+  bool stopped() const { return stopped_; }
+  // What a failed run had computed, or nullptr (see fail()).
+  const Results* failed() const { return failed_ ? &*failed_ : nullptr; }
+  std::size_t finished() const { return finished_; }
+
+ private:
+  static std::string point_key(std::size_t r, std::size_t i) {
+    return "point.r" + std::to_string(r) + ".f" + std::to_string(i);
+  }
+  const ExcitationSpec& excitation() const { return scenes_[0]->excitation; }
+  bool independent() const { return excitation().start == FrequencyStart::independent; }
+  bool prescribed() const { return excitation().kind == ExcitationKind::prescribed; }
+
+  // Fill r's scene, built when it is first needed.
+  const Scene& scene(std::size_t r) {
+    std::lock_guard<std::mutex> lock(scene_mutex_);
+    if (!scenes_[r]) scenes_[r] = std::make_unique<Scene>(make_scene_(static_cast<int>(r)));
+    return *scenes_[r];
+  }
+
+  // The fills that have run point s, with what they measured.
+  std::vector<std::pair<int, FrequencyPoint>> fills_at(std::size_t s) const {
+    std::vector<std::pair<int, FrequencyPoint>> fills;
+    for (std::size_t r = 0; r < points_.size(); ++r)
+      if (points_[r][s]) fills.emplace_back(static_cast<int>(r), *points_[r][s]);
+    return fills;
+  }
+  // Point s judged on its fills 0..count-1 (the ones it asked for: fills that ran it on their
+  // way to a later point join it only in the rows, so that no decision depends on the order
+  // fills run in), or on all that ran it.
+  Ensemble judge_step(std::size_t s, std::size_t count = SIZE_MAX) const {
+    std::vector<FrequencyPoint> runs;
+    for (const auto& [r, p] : fills_at(s))
+      if (static_cast<std::size_t>(r) < count) runs.push_back(p);
+    return judge_fills(runs, excitation());
+  }
+
+  // The /frf (or /prescribed) rows of every finished point, in the order they are run.
+  void add_rows(Results& out) const {
+    for (std::size_t s = 0; s < frequencies_.size(); ++s)
+      if (done_[s]) add_row(out, fills_at(s), sweeps_[s], excitation());
+  }
+
+  // Adds what `run` did since `seen` (its particle steps and simulated time) to the totals.
+  struct Seen {
+    long long steps = 0;
+    double time = 0;
+  };
+  void account(const FrequencyRun& run, Seen& seen) {
+    particle_steps_ += run.system().particle_steps() - seen.steps;
+    simulated_ += run.system().time() - seen.time;
+    seen = {run.system().particle_steps(), run.system().time()};
+    if (!backend_.empty()) return;
+    const auto& engines = run.system().engines();
+    backend_ = engines.empty() ? std::string("none (no particles)") : engines[0]->backend();
+    variant_ = engines.empty() ? std::string("none") : engines[0]->variant();
+    threads_ = engines.empty() ? 1 : engines[0]->threads();
+  }
+
+  // Runs `work(k)` for k = 0..count-1, `jobs_` at a time; the first failure stops the others
+  // and is rethrown (a stop asked for by stop_after is not a failure).
+  void in_parallel(std::size_t count, const std::function<void(std::size_t)>& work) {
+    std::atomic<std::size_t> next{0};
+    std::exception_ptr failure;
+    std::mutex failure_mutex;
+    auto worker = [&] {
+      for (std::size_t k; (k = next++) < count && !g_stop_runs;) {
+        try {
+          work(k);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(failure_mutex);
+          if (!failure && !stopped_) failure = std::current_exception();
+          g_stop_runs = true;
+        }
+      }
+    };
+    const std::size_t workers = std::min<std::size_t>(count, static_cast<std::size_t>(jobs_));
+    std::vector<std::thread> threads;
+    for (std::size_t w = 1; w < workers; ++w) threads.emplace_back(worker);
+    worker();
+    for (auto& t : threads) t.join();
+    if (failure) std::rethrow_exception(failure);
+    // A stop that came between tasks (SIGINT) leaves work undone without any task failing.
+    if (g_stop_runs && !stopped_) throw Interrupted();
+  }
+
+  // Dumps the particles of a failed run beside the output and says where.
+  // Also keeps what the failed run computed (its time series up to the failure, the finished
+  // frequencies) for failed(): a run that blows up in its only segment would otherwise leave
+  // nothing but the particle dump.
+  [[noreturn]] void fail(const FrequencyRun& run, std::size_t r, const SimulationError& e) {
+    if (g_interrupted || dump_path_.empty() || dynamic_cast<const Interrupted*>(&e)) throw;
+    run.system().dump(dump_path_);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!failed_) {
+        Results& f = failed_.emplace(results_);
+        if (!independent() && r == 0)
+          f.timeseries = run.timeseries(), f.energy = run.energy(), f.particles = run.particles();
+        add_rows(f);
+        provenance(f);
+        f.meta_text["failure"] = e.what();
+      }
+    }
+    throw SimulationError(std::string(e.what()) + "\nparticle states written to " + dump_path_);
+  }
+
+  // The settled beds and their reports ("bed.reports": four numbers a fill) of the fills
+  // 0..count-1, into a checkpoint or a bed file.
+  void put_beds(StateArrays& c, std::size_t count) const {
+    std::vector<double> reports;
+    for (std::size_t r = 0; r < count; ++r) {
+      put_state(c, "bed.r" + std::to_string(r) + ".", beds_[r]);
+      reports.insert(reports.end(), {double(reports_[r].ran), double(reports_[r].settled),
+                                     reports_[r].time_s, reports_[r].speed});
+    }
+    c["bed.reports"] = reports;
+  }
+  static BedReport unpack_report(const StateArrays& c, std::size_t r) {
+    const std::vector<double>& v = state_values<double>(c, "bed.reports");
+    if (v.size() < 4 * (r + 1))
+      throw SimulationError("the checkpoint's bed.reports should hold 4 values a realisation");
+    return {v[4 * r] != 0, v[4 * r + 1] != 0, v[4 * r + 2], v[4 * r + 3]};
+  }
+
+  // The beds of the first fills (settle.realisations): from bed.file when it holds them (with
+  // any further fills it holds), else settled side by side (and written there).
+  void settle_beds(Progress& progress) {
+    const auto first = static_cast<std::size_t>(fills_min_);
+    std::vector<std::size_t> missing;
+    for (std::size_t r = 0; r < first; ++r)
+      if (beds_[r].empty()) missing.push_back(r);
+    if (missing.empty()) return;
+    const std::string& file = scenes_[0]->bed.file;
+    const std::string fingerprint = bed_fingerprint(deck_, *scenes_[0]);
+    if (!file.empty() && std::filesystem::exists(file)) {
+      Results saved = read_results(file);
+      const auto held = static_cast<std::size_t>(saved.meta_numbers["realisations"]);
+      if (saved.meta_text["bed_fingerprint"] != fingerprint || held < first)
+        throw InputError(
+            deck_.where("bed.file"), "bed.file",
+            "'" + file +
+                "' holds a bed settled for other particles, container, "
+                "contact, gravity, dt or realisations; delete it or name another file");
+      for (std::size_t r = 0; r < std::min(held, beds_.size()); ++r)
+        if (beds_[r].empty()) {
+          beds_[r] = get_state(saved.checkpoint, "bed.r" + std::to_string(r) + ".");
+          reports_[r] = unpack_report(saved.checkpoint, r);
+        }
+      bed_from_file_ = true;
+      return;
+    }
+    in_parallel(missing.size(), [&](std::size_t k) { settle_bed(missing[k], progress); });
+    if (!file.empty()) {
+      Results saved;
+      saved.meta_text["bed_fingerprint"] = fingerprint;
+      saved.meta_text["deck"] = deck_.text;
+      saved.meta_numbers["realisations"] = double(first);
+      put_beds(saved.checkpoint, first);
+      write_results(file, saved, true);
+    }
+  }
+  void settle_bed(std::size_t r, Progress& progress) {
+    FrequencyRun run(scene(r), [&](double f, double done) { progress.update(r, done, f); });
+    BedReport report;
+    try {
+      report = run.settle_bed();
+    } catch (const SimulationError& e) {
+      fail(run, r, e);
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    reports_[r] = report;
+    beds_[r] = run.save();
+    Seen from_start;
+    account(run, from_start);
+  }
+  // Fill r's bed, settled the first time a fill beyond the first ones needs it.
+  void ensure_bed(std::size_t r, Progress& progress) {
+    std::call_once(bed_once_[r], [&] {
+      if (beds_[r].empty()) settle_bed(r, progress);
+    });
+  }
+
+  void run_tasks() {
+    std::size_t todo = 0;
+    for (char d : done_) todo += d ? 0 : 1;
+    // Progress: a slot per fill (carried) or per point (independent); the first fills' work.
+    const std::size_t slots = independent() ? frequencies_.size() : beds_.size();
+    const double total = double(todo) * (independent() ? fills_min_ : 1);
+    Progress progress(quiet_, std::max(slots, beds_.size()), std::max(total, 1.0),
+                      !fixed_duration(excitation()));
+    progress_ = &progress;
+    settle_beds(progress);
+    if (independent())
+      run_independent(progress);
+    else
+      run_carried(progress);
+    progress.finish();
+  }
+
+  // How many fills the point should have next: enough for a Student-t interval of the spread
+  // seen (t(R-1) s / sqrt(R)) to meet the tolerance, at least two more, at most twice as many.
+  int more_fills(const Ensemble& e, int now) const {
+    const double tolerance = excitation().settle.tolerance;
+    const GroupMean& m = e.mean;
+    const double scale = now > 1 ? student_t975(now - 1) * std::sqrt(1 + 1.0 / now) : 0;
+    const double sa = scale > 0 ? m.amplitude_spread / scale : 0;
+    const double sp = scale > 0 ? m.phase_spread / scale : 0;
+    int need = fills_max_;
+    for (int r = now + 1; r <= fills_max_; ++r) {
+      const double t = student_t975(r - 1) / std::sqrt(double(r));
+      if (scale > 0 && t * sa <= tolerance * m.amplitude.mean && t * sp <= tolerance) {
+        need = r;
+        break;
+      }
+    }
+    return std::min(fills_max_, std::max(now + 2, std::min(need, 2 * now)));
+  }
+  std::string point_name(std::size_t s) const {
+    bool both = false;
+    for (int sweep : sweeps_) both = both || sweep != sweeps_[0];
+    return "f = " + number(frequencies_[s]) + " Hz" +
+           (both ? (sweeps_[s] > 0 ? " (up)" : " (down)") : "");
+  }
+  void say_adding(std::size_t s, const Ensemble& e, int now, int next) {
+    progress_->say(point_name(s) + ": " + ensemble_text(e, prescribed()) + "; " +
+                   std::to_string(next - now) + " more fills (" + std::to_string(next) + " of " +
+                   std::to_string(fills_max_) + ")");
+  }
+
+  // A carried sweep. Every fill is a sweep of its own, so fills run independently, `jobs_` at
+  // a time: the first fills (settle.realisations) through every point; a point is judged once
+  // each fill it wants has run it, and when it wants more, fills beyond the first are sent to
+  // it (catching up from their beds through the points before). Which fill a worker takes
+  // changes only the order of the work, never what a fill computes.
+  void run_carried(Progress& progress) {
+    const auto last = static_cast<long>(frequencies_.size()) - 1;
+    want_.assign(frequencies_.size(), fills_min_);
+    target_.assign(beds_.size(), -1);
+    busy_.assign(beds_.size(), 0);
+    for (std::size_t r = 0; r < static_cast<std::size_t>(fills_min_); ++r) target_[r] = last;
+    std::unique_lock<std::mutex> lock(mutex_);
+    judge_ready();
+    std::exception_ptr failure;
+    std::condition_variable changed;
+    auto worker = [&] {
+      std::unique_lock<std::mutex> held(mutex_);
+      for (;;) {
+        if (g_stop_runs) return;
+        // The fill furthest behind first: points then finish about in order.
+        std::size_t pick = beds_.size();
+        bool running = false;
+        for (std::size_t r = 0; r < beds_.size(); ++r) {
+          running = running || busy_[r];
+          if (!busy_[r] && reached_[r] < target_[r] &&
+              (pick == beds_.size() || reached_[r] < reached_[pick]))
+            pick = r;
+        }
+        if (pick == beds_.size()) {
+          if (!running) return;  // nothing left to run, and nothing running could add any
+          changed.wait(held);
+          continue;
+        }
+        busy_[pick] = 1;
+        held.unlock();
+        try {
+          run_next_point(pick, progress);
+        } catch (...) {
+          held.lock();
+          if (!failure && !stopped_) failure = std::current_exception();
+          g_stop_runs = true;
+          busy_[pick] = 0;
+          changed.notify_all();
+          return;
+        }
+        held.lock();
+        busy_[pick] = 0;
+        judge_ready();
+        changed.notify_all();
+      }
+    };
+    lock.unlock();
+    std::vector<std::thread> threads;
+    for (int w = 1; w < jobs_; ++w) threads.emplace_back(worker);
+    worker();
+    for (auto& t : threads) t.join();
+    if (failure) std::rethrow_exception(failure);
+    if (g_stop_runs && !stopped_) throw Interrupted();
+  }
+
+  // Judges every point whose wanted fills have all run it (mutex_ held): finished, or more
+  // fills sent to it.
+  void judge_ready() {
+    for (std::size_t s = 0; s < frequencies_.size(); ++s) {
+      if (done_[s]) continue;
+      bool ready = true;
+      for (std::size_t r = 0; r < static_cast<std::size_t>(want_[s]); ++r)
+        ready = ready && points_[r][s].has_value();
+      if (!ready) continue;
+      const Ensemble e = judge_step(s, static_cast<std::size_t>(want_[s]));
+      if (e.wants_fills && want_[s] < fills_max_) {
+        const int next = more_fills(e, want_[s]);
+        say_adding(s, e, want_[s], next);
+        for (auto r = static_cast<std::size_t>(want_[s]); r < static_cast<std::size_t>(next); ++r)
+          target_[r] = std::max(target_[r], static_cast<long>(s));
+        want_[s] = next;
+        continue;
+      }
+      finished_step(s);
+      if (stopped_) return;
+    }
+  }
+
+  // Runs fill r's next point (a fill's first from its settled bed) and records it.
+  void run_next_point(std::size_t r, Progress& progress) {
+    if (!runs_[r]) {
+      ensure_bed(r, progress);
+      std::lock_guard<std::mutex> lock(mutex_);  // task_states_ and results_ are shared
+      runs_[r] = std::make_unique<FrequencyRun>(scene(r), [this, r, &progress](double f, double d) {
+        progress.update(r, double(reached_[r] + 1) + d, f);
+      });
+      FrequencyRun& run = *runs_[r];
+      if (const auto it = task_states_.find(r); it != task_states_.end()) {
+        run.restore(it->second);
+        if (r == 0) run.set_records(results_.timeseries, results_.energy, results_.particles);
+      } else {
+        run.restore(beds_[r]);
+      }
+      seen_[r] = {run.system().particle_steps(), run.system().time()};
+    }
+    FrequencyRun& run = *runs_[r];
+    const auto k = static_cast<std::size_t>(reached_[r] + 1);
+    FrequencyPoint point;
+    try {
+      point = run.run_frequency(frequencies_[k], excitation().start);
+    } catch (const SimulationError& e) {
+      fail(run, r, e);
+    }
+    StateArrays state = checkpoint_ ? run.save() : StateArrays{};
+    std::lock_guard<std::mutex> lock(mutex_);
+    points_[r][k] = std::move(point);
+    reached_[r] = static_cast<long>(k);
+    if (checkpoint_) task_states_[r] = std::move(state);
+    account(run, seen_[r]);
+    if (r == 0) {
+      results_.timeseries = run.timeseries();
+      results_.energy = run.energy();
+      results_.particles = run.particles();
+    }
+    const bool catching_up = r >= static_cast<std::size_t>(want_[k]);
+    progress_->say(describe(*points_[r][k], r) + (catching_up ? " (catching up)" : ""));
+  }
+
+  // Independent points side by side, each point's fills in turn from their settled beds.
+  void run_independent(Progress& progress) {
+    std::vector<std::size_t> todo;
+    for (std::size_t s = 0; s < frequencies_.size(); ++s)
+      if (!done_[s]) todo.push_back(s);
+    in_parallel(todo.size(), [&](std::size_t k) {
+      const std::size_t s = todo[k];
+      double done = 0;
+      for (int want = fills_min_;;) {
+        for (std::size_t r = 0; r < static_cast<std::size_t>(want); ++r, done += 1) {
+          if (points_[r][s]) continue;
+          ensure_bed(r, progress);
+          FrequencyRun run(scene(r),
+                           [&, k](double f, double d) { progress.update(k, done + d, f); });
+          run.restore(beds_[r]);
+          Seen seen{run.system().particle_steps(), run.system().time()};
+          FrequencyPoint point;
+          try {
+            point = run.run_frequency(frequencies_[s], excitation().start);
+          } catch (const SimulationError& e) {
+            fail(run, r, e);
+          }
+          std::lock_guard<std::mutex> lock(mutex_);
+          points_[r][s] = std::move(point);
+          account(run, seen);
+          if (r == 0) append_segment(run.timeseries(), s);
+          progress_->say(describe(*points_[r][s], r));
+        }
+        const Ensemble e = judge_step(s);
+        if (!e.wants_fills || want >= fills_max_) break;
+        const int next = more_fills(e, want);
+        say_adding(s, e, want, next);
+        want = next;
+      }
+      std::lock_guard<std::mutex> lock(mutex_);
+      finished_step(s);
+    });
+  }
+
+  // Marks point s finished, tells the log, and writes a checkpoint while points remain
+  // (mutex_ held).
+  void finished_step(std::size_t s) {
+    ++finished_;
+    done_[s] = 1;
+    const Ensemble e = judge_step(s);
+    progress_->say(point_name(s) + ": " + ensemble_text(e, prescribed()));
+    if (std::all_of(done_.begin(), done_.end(), [](char d) { return d != 0; }) || !checkpoint_)
+      return;
+    std::size_t fills = 0;  // fills 0..fills-1 have begun
+    for (std::size_t r = 0; r < beds_.size(); ++r)
+      if (!beds_[r].empty()) fills = r + 1;
+    Results snapshot = results_;
+    add_rows(snapshot);  // the finished points are readable (and plottable) in the .partial
+    StateArrays& c = snapshot.checkpoint;
+    put_beds(c, fills);
+    c["run.fills"] = std::vector<std::int32_t>{static_cast<std::int32_t>(fills)};
+    c["run.done"] = std::vector<std::int32_t>(done_.begin(), done_.end());
+    if (bed_from_file_) c["bed.from_file"] = std::vector<std::int32_t>{1};
+    for (std::size_t k = 0; k < fills; ++k)
+      for (std::size_t f = 0; f < frequencies_.size(); ++f)
+        if (points_[k][f]) {
+          c[point_key(k, f)] = pack(*points_[k][f]);
+          c[point_key(k, f) + ".periods"] = pack_periods(*points_[k][f]);
+        }
+    for (const auto& [k, state] : task_states_)
+      put_state(c, "task.r" + std::to_string(k) + ".", state);
+    c["run.totals"] = std::vector<double>{
+        double(particle_steps_), simulated_,
+        wall_before_ + std::chrono::duration<double>(Clock::now() - started_).count()};
+    provenance(snapshot);
+    checkpoint_(snapshot);
+    if (stop_after_ > 0 && --stop_after_ == 0) {
+      stopped_ = true;
+      g_stop_runs = true;
+    }
+  }
+
+  // Independent frequencies: fill 0's time series, one segment per frequency (each from the
+  // settled bed's time), kept in the order of the frequency list.
+  void append_segment(const TimeSeries& segment, std::size_t index) {
+    segments_[index] = segment;
+    TimeSeries all;
+    std::vector<std::vector<double>*> to;
+    timeseries_columns(
+        all, [&](const char*, auto& column, const char*, const char*) { to.push_back(&column); });
+    for (const auto& [k, part] : segments_) {
+      std::size_t c = 0;
+      timeseries_columns(part, [&](const char*, const auto& column, const char*, const char*) {
+        to[c]->insert(to[c]->end(), column.begin(), column.end());
+        ++c;
+      });
+    }
+    results_.timeseries = all;
+  }
+
+  std::string describe(const FrequencyPoint& p, std::size_t r) const {
+    std::ostringstream s;
+    s.precision(4);
+    s << "f = " << p.frequency << " Hz";
+    if (fills_max_ > 1) s << " (fill " << r + 1 << ")";
+    s << ": " << amplitude_text(std::abs(p.judged.mean), p.judged.amplitude_ci, prescribed())
+      << ", " << p.judged.periods << " periods (" << p.judged.discarded << " warm-up)";
+    if (fixed_duration(excitation()))
+      s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
+    else
+      s << (p.judged.converged  ? ", settled"
+            : settled(p.judged) ? ", held still (" + p.judged.reason + ")"
+                                : ", NOT settled: " + p.judged.reason);
+    return s.str();
+  }
+
+  void provenance(Results& r) const {
+    auto& t = r.meta_text;
+    auto& n = r.meta_numbers;
+    t["deck"] = deck_.text;
+    t["deck_path"] = deck_.path;
+    if (deck_.point > 0)
+      t["sweep_point"] = std::to_string(deck_.point) + ": " + deck_.sweep.describe(deck_.point);
+    t["title"] = deck_.title;
+    t["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
+    t["backend"] = backend_.empty() ? "none (no particles)" : backend_;
+    t["kernel_variant"] = variant_.empty() ? "none" : variant_;
+    const char* schemes[] = {"loose", "interleaved", "tight"};
+    const Scene& scene = *scenes_[0];
+    t["coupling"] = schemes[static_cast<int>(scene.coupling.scheme)];
+    t["dt_basis"] = scene.dt_basis;
+    if (!scene.warning.empty()) t["warning"] = scene.warning;
+    const ExcitationKind kind = excitation().kind;
+    if (kind == ExcitationKind::stepped_sine || kind == ExcitationKind::prescribed)
+      t["start"] = start_name(excitation().start);
+    const BedReport& bed = reports_[0];
+    t["bed"] = !bed.ran         ? "not settled (bed.settle = false, or no gravity or particles)"
+               : bed_from_file_ ? "read from " + scene.bed.file
+               : bed.settled
+                   ? "settled in " + number(bed.time_s) + " s"
+                   : "NOT settled within bed.max_time = " + number(scene.bed.max_time) + " s";
+    n["bed_settled"] = bed.settled ? 1 : 0;
+    n["bed_settle_time_s"] = bed.time_s;
+    n["bed_speed"] = bed.speed;
+    n["realisations"] = double(fills_min_);
+    n["max_realisations"] = double(fills_max_);
+    std::size_t used = 0;
+    for (std::size_t k = 0; k < points_.size(); ++k)
+      for (const auto& p : points_[k]) used = p ? std::max(used, k + 1) : used;
+    n["fills_used"] = double(used);
+    n["jobs"] = jobs_;
+    n["threads"] = threads_;
+    n["dt"] = scene.dt;
+    n["dt_limit"] = scene.dt_limit;
+    n["wall_time_s"] = wall_;
+    n["particle_steps"] = double(particle_steps_);
+    int particles = 0;
+    for (const DamperScene& d : scene.dampers)
+      particles += static_cast<int>(d.engine.particles.size());
+    n["particles"] = particles;
+    n["simulated_time_s"] = simulated_;
+  }
+
+  const Deck& deck_;
+  SceneMaker make_scene_;
+  std::vector<std::unique_ptr<Scene>> scenes_;  // one per fill, built when first needed
+  std::mutex scene_mutex_;
+  int jobs_;
+  bool quiet_;
+  std::string dump_path_;
+  int fills_min_ = 1, fills_max_ = 1;
+  std::vector<double> frequencies_;  // of the points, in the order they are run
+  std::vector<int> sweeps_;          // +1 up, -1 down, per point
+  std::vector<std::vector<std::optional<FrequencyPoint>>> points_;  // [fill][point]
+  std::vector<char> done_;                                          // per point
+  std::vector<StateArrays> beds_;
+  std::vector<BedReport> reports_;
+  std::unique_ptr<std::once_flag[]> bed_once_;
+  std::vector<std::unique_ptr<FrequencyRun>> runs_;  // carried: each fill's run
+  std::vector<long> reached_;  // carried: the last point each fill ran (-1: none)
+  std::vector<long> target_;   // carried: the last point each fill is to run
+  std::vector<int> want_;      // carried: the fills each point wants
+  std::vector<char> busy_;     // carried: a worker is running the fill
+  std::vector<Seen> seen_;
+  std::map<std::size_t, StateArrays> task_states_;
+  std::map<std::size_t, TimeSeries> segments_;
+  Results results_;
+  std::function<void(const Results&)> checkpoint_;
+  Progress* progress_ = nullptr;
+  std::mutex mutex_;
+  int stop_after_ = 0;
+  std::atomic<bool> stopped_{false};
+  bool bed_from_file_ = false;
+  std::optional<Results> failed_;
+  std::size_t finished_ = 0;  // points finished in this process
+  long long particle_steps_ = 0;
+  double simulated_ = 0, wall_ = 0, wall_before_ = 0;
+  Clock::time_point started_ = Clock::now();
+  std::string backend_, variant_;
+  int threads_ = 1;
+};
+
+Driver::Driver(const Deck& deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
+               std::string dump_path)
+    : impl_(std::make_unique<Impl>(deck, std::move(first), std::move(make_scene), jobs, quiet,
+                                   std::move(dump_path))) {}
+Driver::~Driver() = default;
+void Driver::resume_from(const Results& partial) {
+  impl_->resume_from(partial);
+}
+Results Driver::run(const std::function<void(const Results&)>& checkpoint, int stop_after) {
+  return impl_->run(checkpoint, stop_after);
+}
+bool Driver::stopped() const {
+  return impl_->stopped();
+}
+const Results* Driver::failed() const {
+  return impl_->failed();
+}
+std::size_t Driver::finished() const {
+  return impl_->finished();
+}
+
+}  // namespace pdsim

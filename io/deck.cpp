@@ -418,8 +418,8 @@ DamperSpec read_damper(const Table& t, const StructureSpec& structure) {
   const std::string why = "in every [[damper]]";
 
   const Table c = t.need_sub(
-      "container", "a table { shape = \"box\", size } or { shape = \"cylinder\", radius, height }",
-      why);
+      "container",
+      "a table { shape = \"box\", size } or { shape = \"cylinder\", radius, height[, axis] }", why);
   if (c.need_choice("shape", {"box", "cylinder"}, "for a container") == 0) {
     c.allow_only({"shape", "size"}, " for shape = \"box\"");
     d.container.shape = ContainerShape::box;
@@ -427,11 +427,12 @@ DamperSpec read_damper(const Table& t, const StructureSpec& structure) {
     if (!c.has("size")) c.missing("size", expected, "for shape = \"box\"");
     d.container.size = *c.vec3("size", expected, positive);
   } else {
-    c.allow_only({"shape", "radius", "height"}, " for shape = \"cylinder\"");
+    c.allow_only({"shape", "radius", "height", "axis"}, " for shape = \"cylinder\"");
     d.container.shape = ContainerShape::cylinder;
     const std::string cylinder = "for shape = \"cylinder\"";
     d.container.radius = c.need_real("radius", "a positive number (m)", positive, cylinder);
     d.container.height = c.need_real("height", "a positive number (m)", positive, cylinder);
+    d.container.axis = c.direction("axis").value_or(d.container.axis);
   }
 
   const Table p = t.need_sub("particles", "a table { count, diameter, density }", why);

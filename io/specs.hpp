@@ -34,9 +34,10 @@ enum class CouplingScheme { loose, interleaved, tight };
 
 struct ContainerSpec {
   ContainerShape shape = ContainerShape::box;
-  Vec3 size;          // box: full edge lengths, m
-  double radius = 0;  // cylinder, m (axis along z)
-  double height = 0;  // cylinder, m
+  Vec3 size;           // box: full edge lengths, m
+  double radius = 0;   // cylinder, m
+  double height = 0;   // cylinder, m
+  Vec3 axis{0, 0, 1};  // cylinder: its axis in the world at rest (unit)
 };
 
 struct ParticleSpec {

@@ -22,7 +22,8 @@ inline std::vector<std::int32_t> contact_counts(const std::vector<Vec3>& centre,
   // Pairs: particles sorted by cell (cells 2 r_max wide, so partners are in adjacent cells),
   // each pair tested once, from its lower sorted index.
   const double r_max = *std::max_element(radius.begin(), radius.end());
-  const Grid grid = grid_around(container.position, g.half_size, 2 * r_max);
+  const Orientation axes{container.axis_x, container.axis_y, container.axis_z};
+  const Grid grid = grid_around(container.position, world_half_size(g.half_size, axes), 2 * r_max);
   std::vector<std::int32_t> cell(centre.size()), order(centre.size());
   std::vector<std::int32_t> start(static_cast<std::size_t>(grid.nx * grid.ny * grid.nz) + 1, 0);
   for (std::size_t i = 0; i < centre.size(); ++i) {

@@ -51,6 +51,25 @@ struct ContainerGeometry {
   double radius = 0;  // cylinder radius
 };
 
+// The container's axes in the world when its attachment is at rest: the identity, or a
+// cylinder laid along another direction. Only the Rotating kernel variants read axes.
+struct Orientation {
+  Vec3 x{1, 0, 0}, y{0, 1, 0}, z{0, 0, 1};
+  PDSIM_HD bool identity() const {
+    return x.x == 1 && x.y == 0 && x.z == 0 && y.x == 0 && y.y == 1 && y.z == 0 && z.x == 0 &&
+           z.y == 0 && z.z == 1;
+  }
+};
+
+// Half extents along the world axes of a container of half size h whose axes are o: what a
+// cell grid around it must span. Exactly h for the identity.
+inline Vec3 world_half_size(Vec3 h, const Orientation& o) {
+  auto span = [&](double ex, double ey, double ez) {
+    return fabs(ex) * h.x + fabs(ey) * h.y + fabs(ez) * h.z;
+  };
+  return {span(o.x.x, o.y.x, o.z.x), span(o.x.y, o.y.y, o.z.y), span(o.x.z, o.y.z, o.z.z)};
+}
+
 // Rigid container motion at the start of a step. Rotation (a damper on a beam node) is read only
 // by the Rotating kernel variants.
 struct ContainerKinematics {

@@ -29,7 +29,9 @@ struct EngineConfig {
   NormalModel normal = NormalModel::hertz;
   TangentialModel tangential = TangentialModel::history;
   bool rolling = false;
-  bool rotating = false;  // the container turns (a damper on a beam node)
+  bool rotating = false;    // the container turns (a damper on a beam node) or is laid along
+                            // another axis (orientation)
+  Orientation orientation;  // the container's axes at rest
   std::optional<Vec3> gravity;
   ContactParams contact;
   double dt = 0;                         // s

@@ -386,8 +386,9 @@ class GpuEngine final : public DemEngine {
   // counting sort) and rebuilds the neighbour lists, carrying the history. The reordered state
   // goes to the back buffers, which then become current.
   void rebuild(const ContainerKinematics& container) {
-    grid_ =
-        grid_around(container.position, config_.geometry.half_size, 2 * sizes_.r_max + sizes_.skin);
+    grid_ = grid_around(container.position,
+                        world_half_size(config_.geometry.half_size, config_.orientation),
+                        2 * sizes_.r_max + sizes_.skin);
     const int cells = grid_.nx * grid_.ny * grid_.nz;
     cell_start_.resize(static_cast<std::size_t>(cells));
     cell_end_.resize(static_cast<std::size_t>(cells));

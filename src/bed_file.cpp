@@ -19,6 +19,8 @@ std::string bed_fingerprint(const Deck& deck, const Scene& scene) {
     const EngineConfig& e = d.engine;
     s << " | " << int(e.shape) << " " << e.geometry.half_size.x << " " << e.geometry.half_size.y
       << " " << e.geometry.half_size.z << " " << e.density << " " << e.radius.size();
+    if (!e.orientation.identity())  // (absent for the identity: older bed files still fit)
+      s << " axis " << e.orientation.z.x << " " << e.orientation.z.y << " " << e.orientation.z.z;
     // The fill itself, as an FNV-1a hash of its radii and positions.
     std::uint64_t hash = 1469598103934665603ull;
     auto mix = [&](double v) {

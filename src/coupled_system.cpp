@@ -148,20 +148,28 @@ void CoupledSystem::external_load(double t, Eigen::VectorXd& load) const {
     load.noalias() = -drive_.base_acceleration(t) * (structure_.mass * structure_.base_influence);
 }
 
-ContainerKinematics CoupledSystem::container(double u, double u_dot, double theta,
-                                             double theta_dot) const {
+const Orientation& CoupledSystem::orientation(std::size_t k) const {
+  static const Orientation kIdentity;
+  return k < scene_.dampers.size() ? scene_.dampers[k].engine.orientation : kIdentity;
+}
+
+ContainerKinematics CoupledSystem::container(std::size_t damper, double u, double u_dot,
+                                             double theta, double theta_dot) const {
   ContainerKinematics k;
   k.position = u * direction_;
   k.velocity = u_dot * direction_;
+  const Orientation& rest = orientation(damper);
   if (theta != 0.0 || theta_dot != 0.0) {
     // Rodrigues: R e = e cos(theta) + (a x e) sin(theta) + a (a . e)(1 - cos(theta)).
     const Vec3& a = rotation_axis_;
     const double c = std::cos(theta), s = std::sin(theta);
     auto turn = [&](Vec3 e) { return c * e + s * cross(a, e) + (dot(a, e) * (1 - c)) * a; };
-    k.axis_x = turn({1, 0, 0});
-    k.axis_y = turn({0, 1, 0});
-    k.axis_z = turn({0, 0, 1});
+    k.axis_x = turn(rest.x);
+    k.axis_y = turn(rest.y);
+    k.axis_z = turn(rest.z);
     k.angular_velocity = theta_dot * a;
+  } else {
+    k.axis_x = rest.x, k.axis_y = rest.y, k.axis_z = rest.z;
   }
   return k;
 }
@@ -224,9 +232,9 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
     const double u_dot = drive_.base_velocity(t) + translation.dot(integrator_->v);
     const double theta = rotation.dot(integrator_->q), theta_dot = rotation.dot(integrator_->v);
     const ContainerKinematics kin =
-        container(u + lead * u_dot, u_dot, theta + lead * theta_dot, theta_dot);
+        container(k, u + lead * u_dot, u_dot, theta + lead * theta_dot, theta_dot);
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
-    if (totals.flags) check(totals, k, kin.position, when(t));
+    if (totals.flags) check(totals, k, kin, when(t));
     force_along[k] = dot(totals.wall_force, direction_);
     torque_[k] = dot(totals.wall_torque, rotation_axis_);
     power -= dot(totals.wall_force, kin.velocity) + dot(totals.wall_torque, kin.angular_velocity);
@@ -255,15 +263,16 @@ void CoupledSystem::advance() {
 
 void CoupledSystem::step_prescribed() {
   const MotionSpec& m = *prescribed_;
-  const ContainerKinematics kin = container_now(0);  // every container moves alike
-  const double u = dot(kin.position, m.axis);
+  const ContainerKinematics moving = container_now(0);  // every container moves alike
+  const double u = dot(moving.position, m.axis);
   last_ = StepRecord{};
   last_.time = time_;
   last_.displacement = u;
-  last_.velocity = dot(kin.velocity, m.axis);
+  last_.velocity = dot(moving.velocity, m.axis);
   for (std::size_t k = 0; k < engines_.size(); ++k) {
+    const ContainerKinematics kin = container_now(k);  // its own axes
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
-    if (totals.flags) check(totals, k, kin.position, when(time_));
+    if (totals.flags) check(totals, k, kin, when(time_));
     engines_[k]->accept();
     account_springs(k, totals, last_.dissipated_tangential);
     spring_energy_[k] = pending_spring_energy_[k];
@@ -423,7 +432,7 @@ double CoupledSystem::settle_step(double dt) {
     kin.angular_velocity = {};
     const StepTotals& totals = engines_[k]->compute(kin, dt);
     if (totals.flags)
-      check(totals, k, kin.position, "while the bed settled (dt " + std::to_string(dt) + " s)");
+      check(totals, k, kin, "while the bed settled (dt " + std::to_string(dt) + " s)");
     engines_[k]->accept();
     spring_energy_[k] = totals.spring_out;
     speed_sq = std::max(speed_sq, totals.speed_sq);
@@ -436,14 +445,18 @@ double CoupledSystem::settle_step(double dt) {
 ContainerKinematics CoupledSystem::container_now(std::size_t k) const {
   if (prescribed_) {
     const MotionSpec& m = *prescribed_;
-    return translating(m.amplitude * std::sin(drive_.angle(time_)) * m.axis,
-                       m.amplitude * drive_.omega * std::cos(drive_.angle(time_)) * m.axis);
+    ContainerKinematics c =
+        translating(m.amplitude * std::sin(drive_.angle(time_)) * m.axis,
+                    m.amplitude * drive_.omega * std::cos(drive_.angle(time_)) * m.axis);
+    const Orientation& rest = orientation(k);
+    c.axis_x = rest.x, c.axis_y = rest.y, c.axis_z = rest.z;
+    return c;
   }
   const int row = static_cast<int>(k);
   const auto rotation = structure_.attachment_rotation.row(row);
   const double u_dot =
       drive_.base_velocity(time_) + structure_.attachment_translation.row(row).dot(integrator_->v);
-  return container(container_displacement(k), u_dot, rotation.dot(integrator_->q),
+  return container(k, container_displacement(k), u_dot, rotation.dot(integrator_->q),
                    rotation.dot(integrator_->v));
 }
 
@@ -496,10 +509,11 @@ std::string CoupledSystem::when(double t) const {
   return s.str();
 }
 
-void CoupledSystem::check(const StepTotals& totals, std::size_t damper, Vec3 container_position,
-                          const std::string& when) {
+void CoupledSystem::check(const StepTotals& totals, std::size_t damper,
+                          const ContainerKinematics& c, const std::string& when) {
   engines_[damper]->accept();  // show the state the step produced
-  const Vec3 h = scene_.dampers[damper].engine.geometry.half_size;
+  const EngineConfig& e = scene_.dampers[damper].engine;
+  const Vec3 h = e.geometry.half_size;
   std::ostringstream s;
   s.precision(6);
   s << "blow-up " << when << ", damper " << damper << ": "
@@ -508,12 +522,16 @@ void CoupledSystem::check(const StepTotals& totals, std::size_t damper, Vec3 con
   const auto particles = engines_[damper]->particles();
   for (std::size_t i = 0; i < particles.size(); ++i) {
     const ParticleState& p = particles[i];
-    const Vec3 local = p.position - container_position;
+    const Vec3 offset = p.position - c.position;  // in the container's frame:
+    const Vec3 local{dot(offset, c.axis_x), dot(offset, c.axis_y), dot(offset, c.axis_z)};
     const bool finite = std::isfinite(norm(p.position) + norm(p.velocity));
-    if (!finite || std::fabs(local.x) > h.x || std::fabs(local.y) > h.y ||
-        std::fabs(local.z) > h.z) {
+    const bool outside =
+        std::fabs(local.z) > h.z ||
+        (e.shape == WallShape::box ? std::fabs(local.x) > h.x || std::fabs(local.y) > h.y
+                                   : std::hypot(local.x, local.y) > e.geometry.radius);
+    if (!finite || outside) {
       s << "; first particle " << i << " at (" << local.x << ", " << local.y << ", " << local.z
-        << ") m from the container centre, speed " << norm(p.velocity) << " m/s";
+        << ") m from the container centre (container axes), speed " << norm(p.velocity) << " m/s";
       break;
     }
   }

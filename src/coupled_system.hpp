@@ -109,8 +109,11 @@ class CoupledSystem {
   void restore(const StateArrays& state);
 
  private:
-  // Container k at displacement u (m) and rotation theta (rad) about rotation_axis_.
-  ContainerKinematics container(double u, double u_dot, double theta, double theta_dot) const;
+  // Container k at displacement u (m) and rotation theta (rad) about rotation_axis_, its axes
+  // turned from their orientation at rest.
+  const Orientation& orientation(std::size_t k) const;  // damper k's container axes at rest
+  ContainerKinematics container(std::size_t k, double u, double u_dot, double theta,
+                                double theta_dot) const;
   // Generalised external load at t, written into `load` (no allocation in the step loop).
   void external_load(double t, Eigen::VectorXd& load) const;
   double response(const Eigen::VectorXd& q) const;
@@ -123,7 +126,7 @@ class CoupledSystem {
   void step_explicit(bool impulse);
   void step_tight();
   double compute_dampers(double t, double lead, std::vector<double>& force_along);
-  void check(const StepTotals& totals, std::size_t damper, Vec3 container_position,
+  void check(const StepTotals& totals, std::size_t damper, const ContainerKinematics& container,
              const std::string& when);
   std::string when(double t) const;  // "at t = ... s (step ..., dt ... s)"
 

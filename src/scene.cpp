@@ -96,6 +96,27 @@ constexpr double kRandomFillLimit = 0.35;
 constexpr double kMinDt = 1e-12;
 constexpr double kMaxStepsPerPeriod = 1e9;
 
+Orientation orientation_of(const ContainerSpec& c) {
+  Orientation o;
+  if (c.shape != ContainerShape::cylinder) return o;
+  const Vec3 a = c.axis;
+  if (a.x == 0 && a.y == 0) {  // along z: as it is, or turned over about x
+    if (a.z < 0) o.y = {0, -1, 0}, o.z = {0, 0, -1};
+    return o;
+  }
+  // The shortest turn taking z to a: about k = z x a / |z x a| by the angle whose cosine is
+  // a.z (Rodrigues: R v = v cos + (k x v) sin + k (k . v)(1 - cos)).
+  const double sine = std::hypot(a.x, a.y), cosine = a.z;
+  const Vec3 k{-a.y / sine, a.x / sine, 0};
+  auto turn = [&](Vec3 v) {
+    return cosine * v + sine * cross(k, v) + (dot(k, v) * (1 - cosine)) * k;
+  };
+  o.x = turn({1, 0, 0});
+  o.y = turn({0, 1, 0});
+  o.z = a;
+  return o;
+}
+
 std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<double>& radius,
                                  const SourcePos& where, const std::string& key) {
   const ContainerSpec& c = damper.container;
@@ -283,7 +304,9 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     e.normal = contact.model;
     e.tangential = contact.tangential;
     e.rolling = contact.rolling_friction > 0;
-    e.rotating = deck.structure.kind == StructureKind::beam;  // follows the node's slope
+    e.orientation = orientation_of(d.container);
+    // Follows the node's slope, or is laid along another axis.
+    e.rotating = deck.structure.kind == StructureKind::beam || !e.orientation.identity();
     if (deck.gravity && norm(*deck.gravity) > 0) e.gravity = deck.gravity;
     e.contact = params;
     e.recompute = deck.coupling.scheme == CouplingScheme::tight;  // iterates each step
@@ -297,8 +320,10 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     const std::vector<Vec3> centres =
         fill_particles(d, e.radius, deck.where(key + ".particles"), key + ".particles");
     double volume = 0;
+    const Orientation& o = e.orientation;
     for (std::size_t i = 0; i < centres.size(); ++i) {
-      e.particles.push_back({centres[i], {}, {}});
+      const Vec3 c = centres[i];  // into the world: the container's axes at rest
+      e.particles.push_back({o.identity() ? c : c.x * o.x + c.y * o.y + c.z * o.z, {}, {}});
       volume += 4.0 / 3.0 * kPi * std::pow(e.radius[i], 3);
     }
     ds.particle_mass = volume * e.density;

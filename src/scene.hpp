@@ -72,8 +72,13 @@ double linear_contact_time(double stiffness, double mass_eff, double restitution
 // Rayleigh time pi r sqrt(rho/G) / (0.1631 nu + 0.8766).
 double rayleigh_time(double radius, double density, double young, double poisson);
 
-// Initial particle centres (world frame, container centred at the origin) for one damper;
-// errors name `where` and `key` (the damper's particles table).
+// The container's axes in the world at rest: a cylinder's z along its `axis` (the shortest turn
+// from z), the identity otherwise.
+Orientation orientation_of(const ContainerSpec& container);
+
+// Initial particle centres in the container's frame (centred at the origin; build_scene turns
+// them into the world by orientation_of()) for one damper; errors name `where` and `key` (the
+// damper's particles table).
 std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<double>& radius,
                                  const SourcePos& where, const std::string& key);
 

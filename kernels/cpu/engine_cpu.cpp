@@ -357,8 +357,9 @@ class CpuEngine final : public DemEngine {
   void rebuild(const ContainerKinematics& container) {
     const std::size_t n = static_cast<std::size_t>(count_);
     StateBuffer& s = state_[current_];
-    grid_ =
-        grid_around(container.position, config_.geometry.half_size, 2 * sizes_.r_max + sizes_.skin);
+    grid_ = grid_around(container.position,
+                        world_half_size(config_.geometry.half_size, config_.orientation),
+                        2 * sizes_.r_max + sizes_.skin);
     const int cells = grid_.nx * grid_.ny * grid_.nz;
 
     // Counting sort by cell (stable, so the order is reproducible).

@@ -177,6 +177,14 @@ void write_meta(hid_t file_id, const Results& results, bool complete, const std:
   // Variable-length strings: the deck text may exceed the 64 KiB limit of a fixed-length
   // attribute stored in the object header.
   const Handle text_type = variable_string_type(file);
+  auto declared = [](const std::string& name, bool text) {
+    for (const MetaAttribute& a : kMetaAttributes)
+      if (name == a.name && text == a.text && name != "complete") return;
+    throw std::runtime_error("/meta/" + name + " is not declared in kMetaAttributes as a " +
+                             (text ? "text" : "number"));
+  };
+  for (const auto& [name, text] : results.meta_text) declared(name, true);
+  for (const auto& [name, number] : results.meta_numbers) declared(name, false);
   for (const auto& [name, text] : results.meta_text) {
     const char* chars = text.c_str();
     write_attribute(meta.get(), name, text_type.get(), text_type.get(), &chars, file);

@@ -247,8 +247,47 @@ void energy_columns(T& t, F&& f) {
     "work_in - dissipated_* - (kinetic + potential), each as its change since the first sample");
 }
 
+// Every /meta attribute a file may hold, declared once: write_results() refuses any other (a
+// programming error, never a user's), and a test holds io/output.md's table to this list.
+// `complete` is the writer's own (1 in a finished file).
+struct MetaAttribute {
+  const char* name;
+  bool text;  // a string, else a number
+};
+inline constexpr MetaAttribute kMetaAttributes[] = {
+    {"deck", true},
+    {"deck_path", true},
+    {"title", true},
+    {"sweep_point", true},
+    {"version", true},
+    {"backend", true},
+    {"kernel_variant", true},
+    {"coupling", true},
+    {"dt_basis", true},
+    {"warning", true},
+    {"start", true},
+    {"bed", true},
+    {"failure", true},
+    {"bed_fingerprint", true},
+    {"threads", false},
+    {"jobs", false},
+    {"dt", false},
+    {"dt_limit", false},
+    {"wall_time_s", false},
+    {"particle_steps", false},
+    {"particles", false},
+    {"simulated_time_s", false},
+    {"realisations", false},
+    {"max_realisations", false},
+    {"fills_used", false},
+    {"bed_settled", false},
+    {"bed_settle_time_s", false},
+    {"bed_speed", false},
+    {"complete", false},
+};
+
 struct Results {
-  // /meta attributes: deck, version, backend, threads, dt, wall_time_s, particle_steps, ...
+  // /meta attributes (kMetaAttributes).
   std::map<std::string, std::string> meta_text;
   std::map<std::string, double> meta_numbers;
   TimeSeries timeseries;

@@ -4,6 +4,7 @@
 #include <hdf5.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -53,7 +54,7 @@ Results full_results() {
                  {"version", "0.1.0-g1234567-dirty"},
                  {"backend", "cpu"},
                  {"title", "Saeki 250 particles"},
-                 {"empty", ""}};
+                 {"warning", ""}};  // an empty text
   r.meta_numbers = {{"threads", 2},
                     {"dt", 2.0 / 3.0 * 1e-6},
                     {"wall_time_s", 12.345678901234567},
@@ -427,4 +428,45 @@ TEST_CASE("frf_peak: the peak over result points and the higher point that is no
   CHECK_FALSE(none.found);
   REQUIRE(none.higher);
   CHECK(none.higher_frequency == 16.0);
+}
+
+TEST_CASE(
+    "results: io/output.md's /meta table names exactly the declared attributes, typed alike") {
+  std::ifstream doc(std::string(PDSIM_TEST_DIR) + "/../io/output.md");
+  REQUIRE(doc.good());
+  std::string line;
+  bool in_section = false;
+  std::vector<std::pair<std::string, bool>> rows;  // (name, text)
+  while (std::getline(doc, line)) {
+    if (line.rfind("## ", 0) == 0) in_section = line == "## `/meta` attributes";
+    // Table rows: | `name` | text or number | units | meaning |
+    if (!in_section || line.rfind("| `", 0) != 0) continue;
+    const auto close = line.find('`', 3);
+    const std::string name = line.substr(3, close - 3);
+    const auto type_at = line.find("| ", close) + 2;
+    rows.emplace_back(name, line.compare(type_at, 4, "text") == 0);
+  }
+  std::vector<std::pair<std::string, bool>> declared;
+  for (const pdsim::MetaAttribute& a : pdsim::kMetaAttributes)
+    declared.emplace_back(a.name, a.text);
+  std::sort(rows.begin(), rows.end());
+  std::sort(declared.begin(), declared.end());
+  for (const auto& row : rows)
+    if (!std::binary_search(declared.begin(), declared.end(), row))
+      MESSAGE("in io/output.md, not declared so: " << row.first);
+  for (const auto& d : declared)
+    if (!std::binary_search(rows.begin(), rows.end(), d))
+      MESSAGE("declared, not in io/output.md so: " << d.first);
+  CHECK(rows == declared);
+}
+
+TEST_CASE("results: a /meta attribute that is not declared is refused, nothing written") {
+  const fs::path dir = scratch_dir("undeclared_meta");
+  Results r;
+  r.meta_numbers["wall_time"] = 1.0;  // declared as wall_time_s
+  const std::string path = (dir / "run.h5").string();
+  CHECK_THROWS_WITH_AS(pdsim::write_results(path, r, true), doctest::Contains("/meta/wall_time"),
+                       std::runtime_error);
+  CHECK_FALSE(fs::exists(path));
+  fs::remove_all(dir);
 }

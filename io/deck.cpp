@@ -422,13 +422,13 @@ DamperSpec read_damper(const Table& t, const StructureSpec& structure) {
       "a table { shape = \"box\", size } or { shape = \"cylinder\", radius, height[, axis] }", why);
   if (c.need_choice("shape", {"box", "cylinder"}, "for a container") == 0) {
     c.allow_only({"shape", "size"}, " for shape = \"box\"");
-    d.container.shape = ContainerShape::box;
+    d.container.shape = WallShape::box;
     const std::string expected = "3 positive edge lengths [a, b, c] (m)";
     if (!c.has("size")) c.missing("size", expected, "for shape = \"box\"");
     d.container.size = *c.vec3("size", expected, positive);
   } else {
     c.allow_only({"shape", "radius", "height", "axis"}, " for shape = \"cylinder\"");
-    d.container.shape = ContainerShape::cylinder;
+    d.container.shape = WallShape::cylinder;
     const std::string cylinder = "for shape = \"cylinder\"";
     d.container.radius = c.need_real("radius", "a positive number (m)", positive, cylinder);
     d.container.height = c.need_real("height", "a positive number (m)", positive, cylinder);

@@ -10,12 +10,12 @@
 #include <vector>
 
 #include "kernels/dem_types.hpp"
+#include "kernels/shapes.hpp"
 #include "kernels/vec3.hpp"
 #include "structure/structure_spec.hpp"
 
 namespace pdsim {
 
-enum class ContainerShape { box, cylinder };
 enum class Fill { random, lattice };
 enum class ExcitationKind { stepped_sine, sine, free_decay, prescribed };
 enum class ExcitationInput { force, base_displacement, base_acceleration };
@@ -31,14 +31,6 @@ inline const char* start_name(FrequencyStart s) {
   return kStartNames[static_cast<int>(s)];
 }
 enum class CouplingScheme { loose, interleaved, tight };
-
-struct ContainerSpec {
-  ContainerShape shape = ContainerShape::box;
-  Vec3 size;           // box: full edge lengths, m
-  double radius = 0;   // cylinder, m
-  double height = 0;   // cylinder, m
-  Vec3 axis{0, 0, 1};  // cylinder: its axis in the world at rest (unit)
-};
 
 struct ParticleSpec {
   int count = 0;

@@ -5,13 +5,11 @@
 #include <sstream>
 #include <vector>
 
-#include "kernels/vec3.hpp"
+#include "kernels/shapes.hpp"
 
 namespace pdsim {
 
 namespace {
-
-constexpr int kCircleSegments = 32;  // a cylinder's rims drawn as polygons
 
 // The container's wireframe in its own frame: points and the segments joining them.
 struct Wireframe {
@@ -20,25 +18,12 @@ struct Wireframe {
 };
 
 Wireframe wireframe(const DamperSnapshots& d) {
+  ContainerGeometry g;  // from the edge lengths the file keeps (a cylinder: its diameter)
+  g.half_size = {0.5 * d.size.at(0), 0.5 * d.size.at(1), 0.5 * d.size.at(2)};
+  g.radius = g.half_size.x;
   Wireframe w;
-  const Vec3 h{0.5 * d.size.at(0), 0.5 * d.size.at(1), 0.5 * d.size.at(2)};
-  if (d.shape == "box") {
-    for (int k = 0; k < 8; ++k)
-      w.points.push_back({k & 1 ? h.x : -h.x, k & 2 ? h.y : -h.y, k & 4 ? h.z : -h.z});
-    for (int k = 0; k < 8; ++k)
-      for (int bit : {1, 2, 4})
-        if (!(k & bit)) w.segments.insert(w.segments.end(), {k, k | bit});
-    return w;
-  }
-  for (int rim = 0; rim < 2; ++rim)
-    for (int k = 0; k < kCircleSegments; ++k) {
-      const double a = 2 * kPi * k / kCircleSegments;
-      w.points.push_back({h.x * std::cos(a), h.y * std::sin(a), rim ? h.z : -h.z});
-      const int base = rim * kCircleSegments;
-      w.segments.insert(w.segments.end(), {base + k, base + (k + 1) % kCircleSegments});
-    }
-  for (int k = 0; k < kCircleSegments; k += kCircleSegments / 4)
-    w.segments.insert(w.segments.end(), {k, k + kCircleSegments});
+  with_shape(shape_named(d.shape),
+             [&](auto shape) { decltype(shape)::wireframe(g, w.points, w.segments); });
   return w;
 }
 

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "kernels/neighbours.hpp"
+#include "kernels/shapes.hpp"
 
 namespace pdsim {
 
@@ -42,21 +43,18 @@ inline std::vector<std::int32_t> contact_counts(const std::vector<Vec3>& centre,
       if (dot(d, d) < reach * reach) ++count[i], ++count[j];
     });
   }
-  // Walls, in the container's frame.
-  const Vec3 h = g.half_size;
-  for (int i = 0; i < n; ++i) {
-    const Vec3 offset = centre[i] - container.position;
-    const Vec3 local{dot(offset, container.axis_x), dot(offset, container.axis_y),
-                     dot(offset, container.axis_z)};
-    const double r = radius[i];
-    auto wall = [&](double gap) { count[i] += gap < r ? 1 : 0; };
-    if (shape == WallShape::box) {
-      wall(local.x + h.x), wall(h.x - local.x), wall(local.y + h.y), wall(h.y - local.y);
-    } else {
-      wall(g.radius - std::sqrt(local.x * local.x + local.y * local.y));
+  // Walls, in the container's frame, as the step kernels find them.
+  with_shape(shape, [&](auto shape_type) {
+    using S = decltype(shape_type);
+    for (int i = 0; i < n; ++i) {
+      const Vec3 offset = centre[i] - container.position;
+      const Vec3 local{dot(offset, container.axis_x), dot(offset, container.axis_y),
+                       dot(offset, container.axis_z)};
+      const double r = radius[i];
+      S::walls(
+          local, r, g, [&](int, double gap, Vec3) { count[i] += gap < r ? 1 : 0; }, [](double) {});
     }
-    wall(local.z + h.z), wall(h.z - local.z);
-  }
+  });
   return count;
 }
 

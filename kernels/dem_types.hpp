@@ -35,7 +35,6 @@ PDSIM_HD double max_of(double a, double b) {
   return a > b ? a : b;
 }
 
-enum class WallShape : int { box = 0, cylinder = 1 };
 // The contact laws and the backend, as the deck names them and the engine is made with.
 enum class NormalModel { linear, hertz };
 enum class TangentialModel { none, directional, history };

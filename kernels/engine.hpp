@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "kernels/neighbours.hpp"
+#include "kernels/shapes.hpp"
 #include "kernels/step_args.hpp"
 #include "kernels/state_arrays.hpp"
 
@@ -122,11 +123,11 @@ inline void check_particle_count(int count, int max_neighbours) {
 // A particle touches at most one wall per container axis (kMaxWallContacts) only if it is
 // narrower than the container; decks are checked with a clearer message before this.
 constexpr int kMaxWallContacts = 3;
-inline double smallest_inner_size(const ContainerGeometry& g) {
-  return 2 * std::min({g.half_size.x, g.half_size.y, g.half_size.z});
+inline double smallest_inner_size(WallShape shape, const ContainerGeometry& g) {
+  return with_shape(shape, [&](auto s) { return decltype(s)::smallest_inner_size(g); });
 }
-inline void check_fits(const ContainerGeometry& g, double r_max) {
-  if (2 * r_max >= smallest_inner_size(g))
+inline void check_fits(WallShape shape, const ContainerGeometry& g, double r_max) {
+  if (2 * r_max >= smallest_inner_size(shape, g))
     throw SimulationError("particle diameter " + std::to_string(2 * r_max) +
                           " m does not fit in the container");
 }
@@ -149,7 +150,7 @@ inline EngineSizes engine_sizes(const EngineConfig& c) {
   s.skin = default_skin(s.r_min, c.skin);
   s.max_neighbours = neighbour_slots(s.r_min, s.r_max, s.skin);
   check_particle_count(s.count, s.max_neighbours);
-  check_fits(c.geometry, s.r_max);
+  check_fits(c.shape, c.geometry, s.r_max);
   return s;
 }
 

@@ -18,6 +18,7 @@
 #endif
 
 #include "kernels/contact_tangential.hpp"
+#include "kernels/shapes.hpp"
 #include "kernels/step_args.hpp"
 
 namespace pdsim {
@@ -267,7 +268,6 @@ PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribut
   Vec3 offset, local;
   container_offset<V>({a.in.x[i], a.in.y[i], a.in.z[i]}, a, offset, local);
   const ContainerKinematics& box = a.container;
-  const Vec3 h = a.geometry.half_size;
   auto wall = [&](int slot, double gap, Vec3 local_normal) {
     if (gap >= radius) return;
     Vec3 normal = local_normal;
@@ -280,31 +280,7 @@ PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribut
   auto escaped = [&](double beyond) {
     if (beyond > radius) sum.flags |= kEscaped;
   };
-  if constexpr (V::kShape == WallShape::box) {
-    if (fabs(local.x) > h.x - radius) {
-      wall(0, local.x + h.x, {1, 0, 0});
-      wall(1, h.x - local.x, {-1, 0, 0});
-      escaped(fabs(local.x) - h.x);
-    }
-    if (fabs(local.y) > h.y - radius) {
-      wall(2, local.y + h.y, {0, 1, 0});
-      wall(3, h.y - local.y, {0, -1, 0});
-      escaped(fabs(local.y) - h.y);
-    }
-  } else {
-    const double rho_sq = local.x * local.x + local.y * local.y;
-    const double inner = a.geometry.radius - radius;
-    if (rho_sq > inner * inner) {
-      const double rho = sqrt(rho_sq);
-      wall(0, a.geometry.radius - rho, {-local.x / rho, -local.y / rho, 0});
-      escaped(rho - a.geometry.radius);
-    }
-  }
-  if (fabs(local.z) > h.z - radius) {
-    wall(4, local.z + h.z, {0, 0, 1});
-    wall(5, h.z - local.z, {0, 0, -1});
-    escaped(fabs(local.z) - h.z);
-  }
+  ShapeOf<V::kShape>::walls(local, radius, a.geometry, wall, escaped);
 }
 
 // The contact of particle i with a wall at `gap` along `normal`, with tangential history xi
@@ -441,15 +417,7 @@ PDSIM_HOT bool near_wall(int i, const ParticleStepArgs& a) {
   const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
   Vec3 offset, local;
   container_offset<V>({a.in.x[i], a.in.y[i], a.in.z[i]}, a, offset, local);
-  const Vec3 inner = a.geometry.half_size - Vec3{radius, radius, radius};
-  bool near = fabs(local.z) > inner.z;
-  if constexpr (V::kShape == WallShape::box) {
-    near |= (fabs(local.x) > inner.x) | (fabs(local.y) > inner.y);
-  } else {
-    const double inside = a.geometry.radius - radius;
-    near |= local.x * local.x + local.y * local.y > inside * inside;
-  }
-  return near;
+  return ShapeOf<V::kShape>::near(local, radius, a.geometry);
 }
 
 // Which loads particle i has to gather: bit kPairLoads for pairs in contact, kWallLoads for

@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "kernels/dem_types.hpp"
+#include "kernels/shapes.hpp"
 
 namespace pdsim {
 

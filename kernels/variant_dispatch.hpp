@@ -35,8 +35,9 @@ auto by_rotation(const EngineConfig& c, Make&& make) {
 
 template <class N, class T, bool R, bool G, bool P, class Make>
 auto by_shape(const EngineConfig& c, Make&& make) {
-  if (c.shape == WallShape::box) return by_rotation<N, T, R, G, P, WallShape::box>(c, make);
-  return by_rotation<N, T, R, G, P, WallShape::cylinder>(c, make);
+  return with_shape(c.shape, [&](auto shape) {
+    return by_rotation<N, T, R, G, P, kind_of<decltype(shape)>>(c, make);
+  });
 }
 
 template <class N, class T, bool R, bool G, class Make>
@@ -102,7 +103,7 @@ std::string variant_string() {
   if (V::kRolling) s += "/rolling";
   if (V::kGravity) s += "/gravity";
   s += V::kPolydisperse ? "/poly" : "/mono";
-  s += V::kShape == WallShape::box ? "/box" : "/cylinder";
+  s += std::string("/") + ShapeOf<V::kShape>::name;
   if (V::kRotating) s += "/rotating";
   return s;
 }

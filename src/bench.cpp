@@ -24,7 +24,7 @@ namespace {
 // dt = 1e-6 s, lattice start, box shaken 0.004 sin(2 pi 20 t) along x.
 DamperSpec shaken_box(int particles) {
   DamperSpec d;
-  d.container.shape = ContainerShape::box;
+  d.container.shape = WallShape::box;
   if (particles <= 250)
     d.container.size = {0.04, 0.04, 0.04};
   else if (particles <= 8000)

@@ -34,11 +34,8 @@ std::string check_report(const Deck& deck, const Scene& scene) {
       << d.particle_mass / static_cast<double>(n) << " kg each), fill fraction " << d.fill_fraction;
     if (structure_mass > 0) s << ", mass ratio " << d.particle_mass / structure_mass;
     const ContainerSpec& c = deck.dampers[k].container;
-    if (c.shape == ContainerShape::box)
-      s << "\n  container: box " << c.size.x << " x " << c.size.y << " x " << c.size.z << " m";
-    else
-      s << "\n  container: cylinder, radius " << c.radius << " m, length " << c.height
-        << " m, axis [" << c.axis.x << ", " << c.axis.y << ", " << c.axis.z << "]";
+    s << "\n  container: "
+      << with_shape(c.shape, [&](auto shape) { return decltype(shape)::describe(c); });
     s << "\n  kernel variant: " << variant_name(d.engine) << "\n";
   }
   if (!scene.dampers.empty()) {

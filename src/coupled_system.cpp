@@ -513,7 +513,6 @@ void CoupledSystem::check(const StepTotals& totals, std::size_t damper,
                           const ContainerKinematics& c, const std::string& when) {
   engines_[damper]->accept();  // show the state the step produced
   const EngineConfig& e = scene_.dampers[damper].engine;
-  const Vec3 h = e.geometry.half_size;
   std::ostringstream s;
   s.precision(6);
   s << "blow-up " << when << ", damper " << damper << ": "
@@ -525,10 +524,8 @@ void CoupledSystem::check(const StepTotals& totals, std::size_t damper,
     const Vec3 offset = p.position - c.position;  // in the container's frame:
     const Vec3 local{dot(offset, c.axis_x), dot(offset, c.axis_y), dot(offset, c.axis_z)};
     const bool finite = std::isfinite(norm(p.position) + norm(p.velocity));
-    const bool outside =
-        std::fabs(local.z) > h.z ||
-        (e.shape == WallShape::box ? std::fabs(local.x) > h.x || std::fabs(local.y) > h.y
-                                   : std::hypot(local.x, local.y) > e.geometry.radius);
+    const bool outside = with_shape(
+        e.shape, [&](auto shape) { return !decltype(shape)::inside(local, 0.0, e.geometry); });
     if (!finite || outside) {
       s << "; first particle " << i << " at (" << local.x << ", " << local.y << ", " << local.z
         << ") m from the container centre (container axes), speed " << norm(p.velocity) << " m/s";

@@ -26,7 +26,7 @@ FrequencyRun::FrequencyRun(const Scene& scene, Progress progress)
       const EngineConfig& c = scene.dampers[k].engine;
       DamperSnapshots& d = s.dampers.emplace_back();
       const Vec3 h = c.geometry.half_size;
-      d.shape = c.shape == WallShape::box ? "box" : "cylinder";
+      d.shape = shape_name(c.shape);
       d.size = {2 * h.x, 2 * h.y, 2 * h.z};
       d.radius = c.radius;
     }

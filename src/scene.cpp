@@ -65,27 +65,18 @@ std::vector<double> particle_radii(const ParticleSpec& p) {
 }
 
 ContainerGeometry geometry_of(const ContainerSpec& c) {
-  ContainerGeometry g;
-  if (c.shape == ContainerShape::box) {
-    g.half_size = 0.5 * c.size;
-  } else {
-    g.half_size = {c.radius, c.radius, 0.5 * c.height};
-    g.radius = c.radius;
-  }
-  return g;
+  return with_shape(c.shape, [&](auto shape) { return decltype(shape)::geometry(c); });
 }
 
+// A sphere of radius r at p (container frame) lies inside (the fill).
 bool inside(const ContainerSpec& c, Vec3 p, double r) {
   const ContainerGeometry g = geometry_of(c);
-  if (std::fabs(p.z) > g.half_size.z - r) return false;
-  if (c.shape == ContainerShape::box)
-    return std::fabs(p.x) <= g.half_size.x - r && std::fabs(p.y) <= g.half_size.y - r;
-  return std::hypot(p.x, p.y) <= g.radius - r;
+  return with_shape(c.shape, [&](auto shape) { return decltype(shape)::inside(p, r, g); });
 }
 
 double container_volume(const ContainerSpec& c) {
-  return c.shape == ContainerShape::box ? c.size.x * c.size.y * c.size.z
-                                        : kPi * c.radius * c.radius * c.height;
+  const ContainerGeometry g = geometry_of(c);
+  return with_shape(c.shape, [&](auto shape) { return decltype(shape)::volume(g); });
 }
 
 }  // namespace
@@ -98,7 +89,7 @@ constexpr double kMaxStepsPerPeriod = 1e9;
 
 Orientation orientation_of(const ContainerSpec& c) {
   Orientation o;
-  if (c.shape != ContainerShape::cylinder) return o;
+  if (c.shape != WallShape::cylinder) return o;
   const Vec3 a = c.axis;
   if (a.x == 0 && a.y == 0) {  // along z: as it is, or turned over about x
     if (a.z < 0) o.y = {0, -1, 0}, o.z = {0, 0, -1};
@@ -297,7 +288,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     EngineConfig& e = ds.engine;
     e.threads = s.threads;
     e.backend = s.backend;
-    e.shape = d.container.shape == ContainerShape::box ? WallShape::box : WallShape::cylinder;
+    e.shape = d.container.shape;
     e.geometry = geometry_of(d.container);
     e.radius = particle_radii(d.particles);
     e.density = d.particles.density;
@@ -311,7 +302,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     e.contact = params;
     e.recompute = deck.coupling.scheme == CouplingScheme::tight;  // iterates each step
     const double r_max = *std::max_element(e.radius.begin(), e.radius.end());
-    const double smallest_extent = smallest_inner_size(e.geometry);
+    const double smallest_extent = smallest_inner_size(e.shape, e.geometry);
     if (2 * r_max >= smallest_extent)
       throw InputError(deck.where(key + ".particles"), key + ".particles",
                        "particle diameter " + number(2 * r_max) +

@@ -67,7 +67,7 @@ TEST_CASE("a deck with every section keeps its values, integers read as reals") 
 
   REQUIRE(deck.dampers.size() == 2);
   const DamperSpec& cylinder = deck.dampers[0];
-  CHECK(cylinder.container.shape == ContainerShape::cylinder);
+  CHECK(cylinder.container.shape == WallShape::cylinder);
   CHECK(cylinder.container.radius == 0.02);
   CHECK(cylinder.container.height == 0.03);
   CHECK(cylinder.particles.count == 100);
@@ -80,7 +80,7 @@ TEST_CASE("a deck with every section keeps its values, integers read as reals") 
   CHECK(cylinder.attach_node == -1);
   CHECK(!cylinder.attach_x);
   const DamperSpec& box = deck.dampers[1];
-  CHECK(box.container.shape == ContainerShape::box);
+  CHECK(box.container.shape == WallShape::box);
   CHECK(box.container.size.x == 0.05);
   CHECK(box.container.size.y == 0.04);
   CHECK(box.container.size.z == 0.03);

@@ -36,7 +36,7 @@ constexpr double kBallDiameter = 0.03, kClearance = 0.01, kRestitution = 0.6;
 Deck impact_damper_deck(CouplingScheme scheme) {
   Deck d = sdof_deck();
   DamperSpec damper;
-  damper.container.shape = ContainerShape::box;
+  damper.container.shape = WallShape::box;
   damper.container.size = {kBallDiameter + kClearance, 0.036, 0.036};
   damper.particles.count = 1;
   damper.particles.diameter = kBallDiameter;

@@ -84,12 +84,12 @@ std::size_t edit_distance(std::string_view a, std::string_view b) {
   return row[b.size()];
 }
 
-using Names = std::initializer_list<std::string_view>;
+using Names = std::vector<std::string_view>;
 
 // The valid name nearest to a misspelt one, or "" when none is near enough to be a typo
 // (at most `most` edits and a third of its length plus one: 'size' is not a typo of 'shape'),
 // so that the message lists the valid names instead of a wrong guess.
-std::string_view closest(std::string_view given, Names valid, std::size_t most = 3) {
+std::string_view closest(std::string_view given, const Names& valid, std::size_t most = 3) {
   std::string_view best;
   std::size_t best_distance = 1 + std::min(most, 1 + given.size() / 3);
   for (std::string_view name : valid) {
@@ -102,7 +102,7 @@ std::string_view closest(std::string_view given, Names valid, std::size_t most =
   return best;
 }
 
-std::string one_of(Names valid) {
+std::string one_of(const Names& valid) {
   std::string list;
   for (std::string_view name : valid)
     list += (list.empty() ? "\"" : ", \"") + std::string(name) + "\"";
@@ -135,7 +135,7 @@ class Table {
   }
 
   // Refuses any key not in `valid`; `context` says why the set is what it is.
-  void allow_only(Names valid, const std::string& context = "") const {
+  void allow_only(const Names& valid, const std::string& context = "") const {
     for (const auto& entry : table_) {
       const toml::key& k = entry.first;
       if (std::find(valid.begin(), valid.end(), k.str()) != valid.end()) continue;
@@ -193,7 +193,7 @@ class Table {
   }
 
   // A string naming one of `names`; returns its index.
-  std::optional<std::size_t> choice(std::string_view k, Names names) const {
+  std::optional<std::size_t> choice(std::string_view k, const Names& names) const {
     const toml::node* node = table_.get(k);
     if (!node) return std::nullopt;
     const auto* value = node->as_string();
@@ -207,7 +207,7 @@ class Table {
     }
     return static_cast<std::size_t>(found - names.begin());
   }
-  std::size_t need_choice(std::string_view k, Names names, const std::string& why) const {
+  std::size_t need_choice(std::string_view k, const Names& names, const std::string& why) const {
     if (!has(k)) missing(k, one_of(names), why);
     return *choice(k, names);
   }
@@ -493,12 +493,10 @@ ContactSpec read_contact(const std::optional<Table>& t, const Table& top, bool h
   if (t) {
     t->allow_only({"model", "tangential", "young", "poisson", "restitution", "friction",
                    "stiffness", "rolling_friction"});
-    if (const auto i = t->choice("model", {"linear", "hertz"}))
-      c.model = *i == 0 ? NormalModel::linear : NormalModel::hertz;
-    const TangentialModel tangential[] = {TangentialModel::none, TangentialModel::directional,
-                                          TangentialModel::history};
-    if (const auto i = t->choice("tangential", {"none", "directional", "history"}))
-      c.tangential = tangential[*i];
+    if (const auto i = t->choice("model", names_of<NormalLaws>()))
+      c.model = static_cast<NormalModel>(*i);
+    if (const auto i = t->choice("tangential", names_of<TangentialLaws>()))
+      c.tangential = static_cast<TangentialModel>(*i);
     c.young = t->real("young", "a positive number (Pa)", positive).value_or(c.young);
     c.poisson = t->real("poisson", "a number in (-1, 0.5)", poisson_range).value_or(c.poisson);
     c.restitution =
@@ -511,13 +509,17 @@ ContactSpec read_contact(const std::optional<Table>& t, const Table& top, bool h
   if (!has_particles) return c;
   const Table& where = t ? *t : top;
   const std::string prefix = t ? "" : "contact.";
-  if (c.model == NormalModel::linear && c.stiffness == 0)
-    where.missing(prefix + "stiffness", "a positive number (N/m)", "for model = \"linear\"");
-  // Hertz needs E*; Mindlin's tangential stiffness needs G* = f(E, nu) even with a linear normal.
-  if (c.model == NormalModel::hertz && c.young == 0)
-    where.missing(prefix + "young", "a positive number (Pa)", "for model = \"hertz\"");
-  if (c.tangential == TangentialModel::history && c.young == 0)
-    where.missing(prefix + "young", "a positive number (Pa)", "for tangential = \"history\"");
+  // Each law names the keys it cannot run without.
+  auto require = [&](const MissingKey& m, const char* law_key, const char* law) {
+    if (m.key)
+      where.missing(prefix + m.key, m.expected,
+                    std::string("for ") + law_key + " = \"" + law + "\"");
+  };
+  with_normal_law(
+      c.model, [&](auto law) { require(decltype(law)::missing(c), "model", decltype(law)::name); });
+  with_tangential_law(c.tangential, [&](auto law) {
+    require(decltype(law)::missing(c), "tangential", decltype(law)::name);
+  });
   return c;
 }
 

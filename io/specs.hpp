@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "kernels/contact_laws.hpp"
 #include "kernels/dem_types.hpp"
 #include "kernels/shapes.hpp"
 #include "kernels/vec3.hpp"
@@ -48,17 +49,6 @@ struct DamperSpec {
   ParticleSpec particles;
   int attach_node = -1;            // beam: node index (0 = start)
   std::optional<double> attach_x;  // beam: position along the beam, m
-};
-
-struct ContactSpec {
-  NormalModel model = NormalModel::hertz;
-  TangentialModel tangential = TangentialModel::history;
-  double young = 0;  // Pa
-  double poisson = 0.3;
-  double restitution = 0.6;     // (0, 1]
-  double friction = 0.0;        // Coulomb coefficient
-  double stiffness = 0;         // N/m, linear model normal stiffness (required for `linear`)
-  double rolling_friction = 0;  // dimensionless rolling resistance coefficient (0 = off)
 };
 
 // When a frequency's response counts as steady (src/steady_state.hpp): its per-period first

@@ -38,6 +38,10 @@ PDSIM_HD double damper_work(Vec3 f_damp, Vec3 v, Vec3 f, double inv_mass, double
 struct NoTangential {
   static constexpr const char* name = "none";
   static constexpr bool kHistory = false;
+  template <class Spec>
+  static MissingKey missing(const Spec&) {
+    return {};
+  }
   PDSIM_HD static Vec3 force(Vec3*, Vec3, Vec3, const NormalResponse&, double, double, double,
                              const ContactParams&, Dissipation&) {
     return {};
@@ -52,6 +56,10 @@ struct NoTangential {
 struct DirectionalCoulomb {
   static constexpr const char* name = "directional";
   static constexpr bool kHistory = false;
+  template <class Spec>
+  static MissingKey missing(const Spec&) {
+    return {};
+  }
   PDSIM_HD static Vec3 force(Vec3*, Vec3, Vec3 vt, const NormalResponse&, double normal_force,
                              double tangent_mass, double dt, const ContactParams& p,
                              Dissipation& d) {
@@ -72,6 +80,11 @@ struct DirectionalCoulomb {
 struct MindlinHistory {
   static constexpr const char* name = "history";
   static constexpr bool kHistory = true;
+  // The tangential stiffness needs G* = f(E, nu), with a linear normal law too.
+  template <class Spec>
+  static MissingKey missing(const Spec& c) {
+    return c.young == 0 ? MissingKey{"young", "a positive number (Pa)"} : MissingKey{};
+  }
   PDSIM_HD static Vec3 force(Vec3* xi, Vec3 normal, Vec3 vt, const NormalResponse& r,
                              double normal_force, double tangent_mass, double dt,
                              const ContactParams& p, Dissipation& d) {
@@ -114,5 +127,15 @@ struct MindlinHistory {
     return f;
   }
 };
+
+// Every tangential law, in the order of TangentialModel; a new one is its struct above (or its
+// header, included here), a name and a line.
+enum class TangentialModel { none, directional, history };
+using TangentialLaws = std::tuple<NoTangential, DirectionalCoulomb, MindlinHistory>;
+
+template <class F>
+auto with_tangential_law(TangentialModel m, F&& f) {
+  return with_type<TangentialLaws>(m, f);
+}
 
 }  // namespace pdsim

@@ -35,9 +35,7 @@ PDSIM_HD double max_of(double a, double b) {
   return a > b ? a : b;
 }
 
-// The contact laws and the backend, as the deck names them and the engine is made with.
-enum class NormalModel { linear, hertz };
-enum class TangentialModel { none, directional, history };
+// The backend, as the deck names it and the engine is made with.
 enum class Backend { automatic, cpu, cuda };
 // The name of a backend in decks and on the command line.
 inline const char* backend_name(Backend b) {

@@ -9,6 +9,7 @@
 #include <optional>
 #include <vector>
 
+#include "kernels/contact_laws.hpp"
 #include "kernels/neighbours.hpp"
 #include "kernels/shapes.hpp"
 #include "kernels/step_args.hpp"

@@ -61,14 +61,8 @@ auto by_rolling(const EngineConfig& c, Next&& next) {
 
 template <class N, class Next>
 auto by_tangential(const EngineConfig& c, Next&& next) {
-  switch (c.tangential) {
-    case TangentialModel::none:
-      return by_rolling<N, NoTangential>(c, next);
-    case TangentialModel::directional:
-      return by_rolling<N, DirectionalCoulomb>(c, next);
-    default:
-      return by_rolling<N, MindlinHistory>(c, next);
-  }
+  return with_tangential_law(c.tangential,
+                             [&](auto law) { return by_rolling<N, decltype(law)>(c, next); });
 }
 
 // Carries a choice of the laws and rolling on to the remaining choices.
@@ -88,8 +82,8 @@ struct ByGravity {
 // laws and the rolling flag (the CPU engines are compiled in one translation unit per choice).
 template <class Next>
 auto dispatch_laws(const EngineConfig& c, Next&& next) {
-  if (c.normal == NormalModel::linear) return dispatch_detail::by_tangential<LinearNormal>(c, next);
-  return dispatch_detail::by_tangential<HertzNormal>(c, next);
+  return with_normal_law(
+      c.normal, [&](auto law) { return dispatch_detail::by_tangential<decltype(law)>(c, next); });
 }
 
 template <class Make>

@@ -6,31 +6,37 @@
 
 namespace pdsim {
 
-std::string bed_fingerprint(const Deck& deck, const Scene& scene) {
+// Taken over what the engines are made with (not over the deck), so that whatever decides the
+// bed (a law's derived constant, the container's orientation, the fill) is in it without a
+// line here.
+std::string bed_fingerprint(const Scene& scene) {
   std::ostringstream s;
   s.precision(17);
-  s << "dt " << scene.dt << " speed " << deck.bed.speed << " max_time " << deck.bed.max_time;
-  if (deck.gravity)
-    s << " g " << deck.gravity->x << " " << deck.gravity->y << " " << deck.gravity->z;
-  const ContactSpec& c = deck.contact;
-  s << " contact " << int(c.model) << " " << int(c.tangential) << " " << c.young << " " << c.poisson
-    << " " << c.restitution << " " << c.friction << " " << c.stiffness << " " << c.rolling_friction;
+  s << "dt " << scene.dt << " speed " << scene.bed.speed << " max_time " << scene.bed.max_time;
   for (const DamperScene& d : scene.dampers) {
     const EngineConfig& e = d.engine;
-    s << " | " << int(e.shape) << " " << e.geometry.half_size.x << " " << e.geometry.half_size.y
-      << " " << e.geometry.half_size.z << " " << e.density << " " << e.radius.size();
-    if (!e.orientation.identity())  // (absent for the identity: older bed files still fit)
-      s << " axis " << e.orientation.z.x << " " << e.orientation.z.y << " " << e.orientation.z.z;
-    // The fill itself, as an FNV-1a hash of its radii and positions.
+    s << " | " << shape_name(e.shape) << " "
+      << with_normal_law(e.normal, [](auto law) { return decltype(law)::name; }) << " "
+      << with_tangential_law(e.tangential, [](auto law) { return decltype(law)::name; })
+      << " rolling " << e.rolling << " particles " << e.radius.size();
+    // The numbers, as an FNV-1a hash of their bytes.
     std::uint64_t hash = 1469598103934665603ull;
     auto mix = [&](double v) {
       unsigned char bytes[sizeof v];
       std::memcpy(bytes, &v, sizeof v);
       for (unsigned char b : bytes) hash = (hash ^ b) * 1099511628211ull;
     };
+    auto mix3 = [&](Vec3 v) { mix(v.x), mix(v.y), mix(v.z); };
+    mix3(e.geometry.half_size), mix(e.geometry.radius);
+    mix3(e.orientation.x), mix3(e.orientation.y), mix3(e.orientation.z);
+    mix3(e.gravity.value_or(Vec3{})), mix(e.density);
+    const ContactParams& c = e.contact;
+    for (double v : {c.linear_stiffness, c.damping_factor, c.hertz_modulus_pp, c.hertz_modulus_pw,
+                     c.shear_modulus_pp, c.shear_modulus_pw, c.tangential_ratio, c.friction,
+                     c.rolling_friction})
+      mix(v);
     for (double r : e.radius) mix(r);
-    for (const ParticleState& p : e.particles)
-      mix(p.position.x), mix(p.position.y), mix(p.position.z);
+    for (const ParticleState& p : e.particles) mix3(p.position);
     s << " " << hash;
   }
   return s.str();

@@ -3,12 +3,11 @@
 
 #include <string>
 
-#include "io/deck.hpp"
 #include "src/scene.hpp"
 
 namespace pdsim {
 
 // Everything that decides a settled bed: a bed file made for other particles is refused.
-std::string bed_fingerprint(const Deck& deck, const Scene& scene);
+std::string bed_fingerprint(const Scene& scene);
 
 }  // namespace pdsim

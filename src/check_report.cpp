@@ -39,9 +39,7 @@ std::string check_report(const Deck& deck, const Scene& scene) {
     s << "\n  kernel variant: " << variant_name(d.engine) << "\n";
   }
   if (!scene.dampers.empty()) {
-    s << "contact time: " << scene.contact_time << " s"
-      << (deck.contact.model == NormalModel::hertz ? " (Hertz, binary impact at 1 m/s)" : "")
-      << "\n";
+    s << "contact time: " << scene.contact_time << " s" << scene.contact_note << "\n";
     if (scene.rayleigh_time > 0) s << "Rayleigh time: " << scene.rayleigh_time << " s\n";
     s << "dt: " << scene.dt << " s (" << scene.dt_basis << "; limit " << scene.dt_limit << " s)\n";
     if (!scene.warning.empty()) s << "WARNING: " << scene.warning << "\n";

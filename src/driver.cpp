@@ -264,7 +264,7 @@ class Driver::Impl {
       if (beds_[r].empty()) missing.push_back(r);
     if (missing.empty()) return;
     const std::string& file = scenes_[0]->bed.file;
-    const std::string fingerprint = bed_fingerprint(deck_, *scenes_[0]);
+    const std::string fingerprint = bed_fingerprint(*scenes_[0]);
     if (!file.empty() && std::filesystem::exists(file)) {
       Results saved = read_results(file);
       const auto held = static_cast<std::size_t>(saved.meta_numbers["realisations"]);

@@ -11,38 +11,6 @@
 
 namespace pdsim {
 
-double linear_damping_factor(double restitution) {
-  const double l = std::log(restitution);
-  return 2.0 * std::fabs(l) / std::sqrt(kPi * kPi + l * l);
-}
-
-double hertz_damping_factor(double restitution) {
-  const double l = std::log(restitution);
-  const double beta = l / std::sqrt(l * l + kPi * kPi);
-  return -2.0 * std::sqrt(5.0 / 6.0) * beta;
-}
-
-ContactParams hertz_contact(double young, double poisson, double restitution, double friction) {
-  ContactParams p;
-  p.damping_factor = hertz_damping_factor(restitution);
-  p.hertz_modulus_pp = p.hertz_modulus_pw = young / (2 * (1 - poisson * poisson));
-  const double shear = young / (2 * (1 + poisson));
-  p.shear_modulus_pp = p.shear_modulus_pw = shear / (2 * (2 - poisson));
-  p.friction = friction;
-  return p;
-}
-
-double linear_contact_time(double stiffness, double mass_eff, double restitution) {
-  const double c = linear_damping_factor(restitution) * std::sqrt(mass_eff * stiffness);
-  const double half = c / (2 * mass_eff);
-  return kPi / std::sqrt(stiffness / mass_eff - half * half);
-}
-
-double rayleigh_time(double radius, double density, double young, double poisson) {
-  const double shear = young / (2 * (1 + poisson));
-  return kPi * radius * std::sqrt(density / shear) / (0.1631 * poisson + 0.8766);
-}
-
 namespace {
 
 // Uniform double in [0, 1) from a 64-bit generator, identical on every platform.
@@ -270,14 +238,8 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
                                 : "auto: " + gpu;
 
   // Same material for particles and walls.
-  ContactParams params;
-  if (contact.model == NormalModel::hertz) {
-    params = hertz_contact(contact.young, contact.poisson, contact.restitution, contact.friction);
-  } else {
-    params.linear_stiffness = contact.stiffness;
-    params.damping_factor = linear_damping_factor(contact.restitution);
-    params.friction = contact.friction;
-  }
+  ContactParams params =
+      with_normal_law(contact.model, [&](auto law) { return decltype(law)::params(contact); });
   params.rolling_friction = contact.rolling_friction;
 
   double r_min = 1e300, density_min = 0;
@@ -327,24 +289,16 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   // Time step: a fraction of the contact time (linear) or of the Rayleigh time (Hertz).
   if (!deck.dampers.empty()) {
     const double mass_min = density_min * 4.0 / 3.0 * kPi * r_min * r_min * r_min;
-    double safety = deck.solver.dt_safety;
-    if (contact.model == NormalModel::linear) {
-      s.contact_time = linear_contact_time(contact.stiffness, 0.5 * mass_min, contact.restitution);
-      if (safety <= 0) safety = 0.02;
-      s.dt = safety * s.contact_time;
-      s.dt_limit = s.contact_time / 8;
-      s.dt_basis = number(safety) + " x linear contact time " + number(s.contact_time) + " s";
-    } else {
-      s.rayleigh_time = rayleigh_time(r_min, density_min, contact.young, contact.poisson);
-      // Hertz binary contact time at 1 m/s: 2.87 (m*^2 / (R* E*^2 v))^(1/5) (Johnson 1985).
-      const double e_star = params.hertz_modulus_pp;
-      s.contact_time =
-          2.87 * std::pow(std::pow(0.5 * mass_min, 2) / (0.5 * r_min * e_star * e_star), 0.2);
-      if (safety <= 0) safety = 0.15;
-      s.dt = safety * s.rayleigh_time;
-      s.dt_limit = 0.4 * s.rayleigh_time;
-      s.dt_basis = number(safety) + " x Rayleigh time " + number(s.rayleigh_time) + " s";
-    }
+    const TimeStepRule rule = with_normal_law(contact.model, [&](auto law) {
+      return decltype(law)::time_step(contact, params, r_min, density_min, mass_min);
+    });
+    const double safety = deck.solver.dt_safety > 0 ? deck.solver.dt_safety : rule.default_safety;
+    s.contact_time = rule.contact_time;
+    s.rayleigh_time = rule.rayleigh_time;
+    s.contact_note = rule.contact_note;
+    s.dt = safety * rule.basis_time;
+    s.dt_limit = rule.dt_limit;
+    s.dt_basis = number(safety) + " x " + rule.basis + " " + number(rule.basis_time) + " s";
     if (deck.solver.dt > 0) {
       if (deck.solver.dt > s.dt_limit && !deck.solver.allow_unstable)
         throw InputError(deck.where("solver.dt"), "solver.dt",

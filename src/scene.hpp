@@ -31,6 +31,7 @@ struct Scene {
   double dt_limit = 0;       // s, stability/accuracy limit for an explicit dt
   std::string warning;       // what the user accepted against advice (allow_unstable), or ""
   double contact_time = 0;   // s, linear: exact binary contact time; hertz: estimate at 1 m/s
+  std::string contact_note;  // how contact_time was taken (the law's words), or ""
   double rayleigh_time = 0;  // s, hertz only
   std::string dt_basis;      // how dt was chosen
   int threads = 0;
@@ -58,19 +59,6 @@ Scene build_scene(const Deck& deck, int threads = 0, std::optional<Backend> back
 LinearStructure build_structure(const Deck& deck);
 // Natural frequencies (Hz) of the deck's structure, ascending; an InputError when it has none.
 std::vector<double> structure_frequencies(const Deck& deck);
-
-// Restitution-consistent damping factors (brief section 2).
-double linear_damping_factor(double restitution);  // c = factor sqrt(m* k)
-double hertz_damping_factor(double restitution);   // c = factor sqrt(Sn m*)
-
-// Hertz-Mindlin constants of one material on both sides of every contact (particle-particle and
-// particle-wall): E* = E / (2 (1 - nu^2)), G* = G / (2 (2 - nu)), G = E / (2 (1 + nu)).
-ContactParams hertz_contact(double young, double poisson, double restitution, double friction);
-
-// Exact contact time of the linear spring-dashpot: pi / sqrt(k/m* - (c/2m*)^2).
-double linear_contact_time(double stiffness, double mass_eff, double restitution);
-// Rayleigh time pi r sqrt(rho/G) / (0.1631 nu + 0.8766).
-double rayleigh_time(double radius, double density, double young, double poisson);
 
 // The container's axes in the world at rest: a cylinder's z along its `axis` (the shortest turn
 // from z), the identity otherwise.

@@ -1,0 +1,78 @@
+// bed.file keeps a settled bed for later runs; it is reused only for the same engines: the
+// fingerprint is taken over what the engines are made with, so a change of a contact law's
+// constant or of the container's orientation is refused, not silently run on a stale bed.
+#include <doctest/doctest.h>
+
+#include <filesystem>
+#include <string>
+#include <unistd.h>
+
+#include "src/run.hpp"
+#include "src/scene.hpp"
+
+using namespace pdsim;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string deck(const std::string& bed_file, double restitution, const std::string& axis) {
+  return R"([structure]
+kind = "sdof"
+mass = 0.5
+stiffness = 8000.0
+damping_ratio = 0.02
+[[damper]]
+container = { shape = "cylinder", radius = 0.012, height = 0.03, axis = )" +
+         axis + R"( }
+particles = { count = 10, diameter = 0.005, density = 7800.0, seed = 4 }
+[contact]
+model = "linear"
+tangential = "history"
+stiffness = 4000.0
+young = 2.0e8
+restitution = )" +
+         std::to_string(restitution) + R"(
+friction = 0.3
+[gravity]
+vector = [0.0, 0.0, -9.81]
+[bed]
+max_time = 0.3
+file = ")" +
+         bed_file +
+         R"("
+[excitation]
+kind = "stepped_sine"
+amplitude = 1.0
+frequencies = [20.0]
+settle = { min_periods = 3, max_periods = 3, batches = 2, max_realisations = 2 }
+[solver]
+threads = 1
+)";
+}
+
+Results run(const std::string& text) {
+  const Deck d = parse_deck(text, "bed.toml");
+  return simulate(d, build_scene(d));
+}
+
+}  // namespace
+
+TEST_CASE("bed.file: reused for the same engines, refused when a derived constant differs") {
+  const fs::path dir = fs::temp_directory_path() / ("pdsim_bed_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const std::string file = (dir / "bed.h5").string();
+  const Results first = run(deck(file, 0.5, "[0, 0, 1]"));
+  CHECK(first.meta_text.at("bed").rfind("read from", 0) != 0);  // settled here, then kept
+  REQUIRE(fs::exists(file));
+  const Results again = run(deck(file, 0.5, "[0, 0, 1]"));
+  CHECK(again.meta_text.at("bed") == "read from " + file);
+  CHECK(again.frf.amplitude == first.frf.amplitude);  // the same bed, the same run
+  // Restitution changes only the derived damping factor; the axis only the orientation.
+  for (const auto& [restitution, axis] :
+       {std::pair{0.6, std::string("[0, 0, 1]")}, std::pair{0.5, std::string("[1, 0, 0]")}}) {
+    CAPTURE(axis);
+    CHECK_THROWS_WITH_AS(run(deck(file, restitution, axis)),
+                         doctest::Contains("holds a bed settled for other particles"), InputError);
+  }
+  fs::remove_all(dir);
+}

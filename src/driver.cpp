@@ -22,9 +22,9 @@ namespace pdsim {
 
 class Driver::Impl {
  public:
-  Impl(const Deck& deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
+  Impl(DeckRecord deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
        std::string dump_path)
-      : deck_(deck),
+      : deck_(std::move(deck)),
         make_scene_(std::move(make_scene)),
         jobs_(jobs),
         quiet_(quiet),
@@ -270,7 +270,7 @@ class Driver::Impl {
       const auto held = static_cast<std::size_t>(saved.meta_numbers["realisations"]);
       if (saved.meta_text["bed_fingerprint"] != fingerprint || held < first)
         throw InputError(
-            deck_.where("bed.file"), "bed.file",
+            deck_.bed_file_at, "bed.file",
             "'" + file +
                 "' holds a bed settled for other particles, container, "
                 "contact, gravity, dt or realisations; delete it or name another file");
@@ -599,8 +599,7 @@ class Driver::Impl {
     auto& n = r.meta_numbers;
     t["deck"] = deck_.text;
     t["deck_path"] = deck_.path;
-    if (deck_.point > 0)
-      t["sweep_point"] = std::to_string(deck_.point) + ": " + deck_.sweep.describe(deck_.point);
+    if (!deck_.sweep_point.empty()) t["sweep_point"] = deck_.sweep_point;
     t["title"] = deck_.title;
     t["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
     t["backend"] = backend_.empty() ? "none (no particles)" : backend_;
@@ -641,7 +640,7 @@ class Driver::Impl {
     n["simulated_time_s"] = simulated_;
   }
 
-  const Deck& deck_;
+  const DeckRecord deck_;
   SceneMaker make_scene_;
   std::vector<std::unique_ptr<Scene>> scenes_;  // one per fill, built when first needed
   std::mutex scene_mutex_;
@@ -680,10 +679,17 @@ class Driver::Impl {
   int threads_ = 1;
 };
 
-Driver::Driver(const Deck& deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
+DeckRecord deck_record(const Deck& deck) {
+  DeckRecord r{deck.text, deck.path, deck.title, "", deck.where("bed.file")};
+  if (deck.point > 0)
+    r.sweep_point = std::to_string(deck.point) + ": " + deck.sweep.describe(deck.point);
+  return r;
+}
+
+Driver::Driver(DeckRecord deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
                std::string dump_path)
-    : impl_(std::make_unique<Impl>(deck, std::move(first), std::move(make_scene), jobs, quiet,
-                                   std::move(dump_path))) {}
+    : impl_(std::make_unique<Impl>(std::move(deck), std::move(first), std::move(make_scene), jobs,
+                                   quiet, std::move(dump_path))) {}
 Driver::~Driver() = default;
 void Driver::resume_from(const Results& partial) {
   impl_->resume_from(partial);

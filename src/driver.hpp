@@ -20,12 +20,21 @@ namespace pdsim {
 // criterion, exactly as a fill carried all the way (its values there join those points). With
 // start = "independent" a task is one point, its fills from their own beds, the tasks side by
 // side. Fills run `jobs` at a time; what a fill computes never depends on that schedule.
+// What a run keeps of its deck, for provenance and the errors of bed.file: the driver reads
+// nothing else of it (the scene holds the rest).
+struct DeckRecord {
+  std::string text, path, title;
+  std::string sweep_point;  // "K: key = value, ..." for a point of a [sweep], else ""
+  SourcePos bed_file_at;    // where bed.file is set
+};
+DeckRecord deck_record(const Deck& deck);
+
 class Driver {
  public:
   using SceneMaker = std::function<Scene(int fill)>;
   // `first` is fill 0's scene, `make_scene(r)` builds fill r's; `dump_path` receives the
   // particles of a run that blows up ("" : none).
-  Driver(const Deck& deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
+  Driver(DeckRecord deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
          std::string dump_path);
   ~Driver();
   // Continues from the checkpoint of an interrupted run (its points, beds and records).

@@ -47,19 +47,16 @@ Plan plan_run(const Deck& deck, const Scene& scene, int threads, int jobs,
   const int total = threads > 0 ? threads : deck.solver.threads > 0 ? deck.solver.threads : cores;
   const int side_by_side = std::max(1, std::min(tasks, jobs > 0 ? jobs : total));
   const int each = tasks > 1 ? std::max(1, total / side_by_side) : threads;
-  auto make = [deck, each, backend](int r) {
-    Deck seeded = deck;
-    for (DamperSpec& d : seeded.dampers) d.particles.seed += static_cast<std::uint64_t>(r);
-    return build_scene(seeded, each, backend);
-  };
-  return {each == threads ? scene : make(0), make, side_by_side};
+  Scene first = each == threads ? scene : build_scene(deck, each, backend);
+  auto make = [base = first](int r) { return scene_of_fill(base, r); };
+  return {std::move(first), make, side_by_side};
 }
 
 }  // namespace
 
 Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
   Plan plan = plan_run(deck, scene, scene.threads, jobs, std::nullopt);
-  Driver driver(deck, std::move(plan.first), plan.make_scene, plan.jobs, quiet, "");
+  Driver driver(deck_record(deck), std::move(plan.first), plan.make_scene, plan.jobs, quiet, "");
   return driver.run({}, 0);
 }
 
@@ -111,7 +108,7 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   const Scene scene = build_scene(deck, options.threads, options.backend);
   if (!scene.warning.empty()) std::cerr << "warning: " << scene.warning << "\n";
   Plan plan = plan_run(deck, scene, options.threads, options.jobs, options.backend);
-  Driver driver(deck, std::move(plan.first), plan.make_scene, plan.jobs, options.quiet,
+  Driver driver(deck_record(deck), std::move(plan.first), plan.make_scene, plan.jobs, options.quiet,
                 path + ".blowup.csv");
   if (options.resume) {
     if (!fs::exists(partial))

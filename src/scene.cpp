@@ -215,6 +215,40 @@ void check_feasible(const Deck& deck, const Scene& s) {
                      "the deck's frequencies): expected values a structure can have");
 }
 
+// The smallest radius a fill of `p` holds: of the diameters used, or the range's lower end.
+double smallest_radius(const ParticleSpec& p) {
+  if (p.diameters.empty()) return 0.5 * (p.diameter_max > 0 ? p.diameter_min : p.diameter);
+  const std::size_t used = std::min(p.diameters.size(), static_cast<std::size_t>(p.count));
+  return 0.5 * *std::min_element(p.diameters.begin(), p.diameters.begin() + used);
+}
+
+// A damper's particles for the fill of `seed`: radii, centres in the world, mass and fill
+// fraction (its engine's other settings are the scene's).
+void fill_damper(DamperScene& ds, std::uint64_t seed) {
+  DamperSpec d = ds.spec;
+  d.particles.seed = seed;
+  EngineConfig& e = ds.engine;
+  e.radius = particle_radii(d.particles);
+  const double r_max = *std::max_element(e.radius.begin(), e.radius.end());
+  const double smallest_extent = smallest_inner_size(e.shape, e.geometry);
+  if (2 * r_max >= smallest_extent)
+    throw InputError(ds.particles_at, ds.key,
+                     "particle diameter " + number(2 * r_max) +
+                         " m does not fit in the container (smallest inner size " +
+                         number(smallest_extent) + " m)");
+  const std::vector<Vec3> centres = fill_particles(d, e.radius, ds.particles_at, ds.key);
+  double volume = 0;
+  const Orientation& o = e.orientation;
+  e.particles.clear();
+  for (std::size_t i = 0; i < centres.size(); ++i) {
+    const Vec3 c = centres[i];  // into the world: the container's axes at rest
+    e.particles.push_back({o.identity() ? c : c.x * o.x + c.y * o.y + c.z * o.z, {}, {}});
+    volume += 4.0 / 3.0 * kPi * std::pow(e.radius[i], 3);
+  }
+  ds.particle_mass = volume * e.density;
+  ds.fill_fraction = volume / container_volume(d.container);
+}
+
 }  // namespace
 
 Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend) {
@@ -245,14 +279,15 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   double r_min = 1e300, density_min = 0;
   for (std::size_t k = 0; k < deck.dampers.size(); ++k) {
     const DamperSpec& d = deck.dampers[k];
-    const std::string key = "damper[" + std::to_string(k) + "]";
     DamperScene ds;
+    ds.spec = d;
+    ds.key = "damper[" + std::to_string(k) + "].particles";
+    ds.particles_at = deck.where(ds.key);
     EngineConfig& e = ds.engine;
     e.threads = s.threads;
     e.backend = s.backend;
     e.shape = d.container.shape;
     e.geometry = geometry_of(d.container);
-    e.radius = particle_radii(d.particles);
     e.density = d.particles.density;
     e.normal = contact.model;
     e.tangential = contact.tangential;
@@ -263,26 +298,11 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     if (deck.gravity && norm(*deck.gravity) > 0) e.gravity = deck.gravity;
     e.contact = params;
     e.recompute = deck.coupling.scheme == CouplingScheme::tight;  // iterates each step
-    const double r_max = *std::max_element(e.radius.begin(), e.radius.end());
-    const double smallest_extent = smallest_inner_size(e.shape, e.geometry);
-    if (2 * r_max >= smallest_extent)
-      throw InputError(deck.where(key + ".particles"), key + ".particles",
-                       "particle diameter " + number(2 * r_max) +
-                           " m does not fit in the container (smallest inner size " +
-                           number(smallest_extent) + " m)");
-    const std::vector<Vec3> centres =
-        fill_particles(d, e.radius, deck.where(key + ".particles"), key + ".particles");
-    double volume = 0;
-    const Orientation& o = e.orientation;
-    for (std::size_t i = 0; i < centres.size(); ++i) {
-      const Vec3 c = centres[i];  // into the world: the container's axes at rest
-      e.particles.push_back({o.identity() ? c : c.x * o.x + c.y * o.y + c.z * o.z, {}, {}});
-      volume += 4.0 / 3.0 * kPi * std::pow(e.radius[i], 3);
-    }
-    ds.particle_mass = volume * e.density;
-    ds.fill_fraction = volume / container_volume(d.container);
-    for (double r : e.radius)
-      if (r < r_min) r_min = r, density_min = e.density;
+    fill_damper(ds, d.particles.seed);
+    // dt follows the smallest particle a fill of this design can hold, so that every fill
+    // (scene_of_fill) runs at the same step.
+    const double r_least = smallest_radius(d.particles);
+    if (r_least < r_min) r_min = r_least, density_min = e.density;
     s.dampers.push_back(std::move(ds));
   }
 
@@ -362,6 +382,13 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   s.bed = deck.bed;
   s.output = deck.output;
   s.gravity = deck.gravity;
+  return s;
+}
+
+Scene scene_of_fill(const Scene& first, int fill) {
+  Scene s = first;
+  for (DamperScene& d : s.dampers)
+    fill_damper(d, d.spec.particles.seed + static_cast<std::uint64_t>(fill));
   return s;
 }
 

@@ -21,6 +21,11 @@ struct DamperScene {
   EngineConfig engine;       // dt is filled per run segment by the solver
   double particle_mass = 0;  // kg, total
   double fill_fraction = 0;  // particle volume / container volume
+  // What another fill is drawn from (scene_of_fill): the deck's damper, and where its particles
+  // table is for errors.
+  DamperSpec spec;
+  std::string key;  // "damper[k].particles"
+  SourcePos particles_at;
 };
 
 struct Scene {
@@ -54,6 +59,10 @@ struct Scene {
 // Validates the physical consistency of `deck` and derives the scene. `threads` and `backend`
 // override the deck's [solver] values when given (command line).
 Scene build_scene(const Deck& deck, int threads = 0, std::optional<Backend> backend = {});
+
+// The scene of another fill of the same design: `first` with every damper's particles drawn
+// from fill seed seed + fill (radii, positions, masses); the rest (structure, dt) as it is.
+Scene scene_of_fill(const Scene& first, int fill);
 
 // The deck's structure with its dampers' mounts; errors name the deck's keys.
 LinearStructure build_structure(const Deck& deck);

@@ -25,15 +25,10 @@ inline std::vector<std::int32_t> contact_counts(const std::vector<Vec3>& centre,
   const double r_max = *std::max_element(radius.begin(), radius.end());
   const Orientation axes{container.axis_x, container.axis_y, container.axis_z};
   const Grid grid = grid_around(container.position, world_half_size(g.half_size, axes), 2 * r_max);
-  std::vector<std::int32_t> cell(centre.size()), order(centre.size());
-  std::vector<std::int32_t> start(static_cast<std::size_t>(grid.nx * grid.ny * grid.nz) + 1, 0);
-  for (std::size_t i = 0; i < centre.size(); ++i) {
-    cell[i] = cell_of(grid, centre[i]);
-    ++start[static_cast<std::size_t>(cell[i]) + 1];
-  }
-  std::partial_sum(start.begin(), start.end(), start.begin());
-  std::vector<std::int32_t> fill(start.begin(), start.end() - 1);
-  for (int i = 0; i < n; ++i) order[static_cast<std::size_t>(fill[cell[i]]++)] = i;
+  const CellOrder sorted =
+      sort_by_cell(grid, centre.size(), [&](std::size_t i) { return centre[i]; });
+  const std::vector<std::int32_t>& order = sorted.order;
+  const std::vector<std::int32_t>& start = sorted.cell_start;
   for (int a = 0; a < n; ++a) {
     const int i = order[a];
     for_each_nearby(grid, centre[i], start.data(), start.data() + 1, a + 1, n, [&](int b) {

@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <numeric>
+#include <vector>
 
 #include "kernels/dem_types.hpp"
 
@@ -29,6 +31,31 @@ PDSIM_HD int cell_of(const Grid& g, Vec3 p) {
   const int cy = clamp_cell((p.y - g.origin.y) * inv, g.ny);
   const int cz = clamp_cell((p.z - g.origin.z) * inv, g.nz);
   return (cz * g.ny + cy) * g.nx + cx;
+}
+
+// Particles sorted by cell, on the host (the CPU engine's rebuild, the snapshots' contact
+// counts; the GPU sorts by radix to the same order): a stable counting sort, so the order is
+// reproducible. order[k] is the particle k-th in cell order; cell_start[c] is the first sorted
+// index of cell c (one entry a cell and one past the last).
+struct CellOrder {
+  std::vector<std::int32_t> order, cell_start;
+};
+template <class Position>
+CellOrder sort_by_cell(const Grid& g, std::size_t n, Position&& position) {
+  CellOrder s;
+  std::vector<std::int32_t> cell(n);
+  s.cell_start.assign(static_cast<std::size_t>(g.nx) * g.ny * g.nz + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    cell[i] = cell_of(g, position(i));
+    ++s.cell_start[static_cast<std::size_t>(cell[i]) + 1];
+  }
+  std::partial_sum(s.cell_start.begin(), s.cell_start.end(), s.cell_start.begin());
+  std::vector<std::int32_t> fill(s.cell_start.begin(), s.cell_start.end() - 1);
+  s.order.resize(n);
+  for (std::size_t i = 0; i < n; ++i)
+    s.order[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell[i])]++)] =
+        static_cast<std::int32_t>(i);
+  return s;
 }
 
 // Host-side choices both backends share (checkpoints carry their results, so they must agree).

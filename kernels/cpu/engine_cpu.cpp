@@ -360,23 +360,11 @@ class CpuEngine final : public DemEngine {
     grid_ = grid_around(container.position,
                         world_half_size(config_.geometry.half_size, config_.orientation),
                         2 * sizes_.r_max + sizes_.skin);
-    const int cells = grid_.nx * grid_.ny * grid_.nz;
-
-    // Counting sort by cell (stable, so the order is reproducible).
-    std::vector<std::int32_t> cell_of_particle(n);
-    std::vector<std::int32_t> cell_start(static_cast<std::size_t>(cells) + 1, 0);
-    for (std::size_t i = 0; i < n; ++i) {
-      cell_of_particle[i] = cell_of(grid_, {s.x[i], s.y[i], s.z[i]});
-      ++cell_start[static_cast<std::size_t>(cell_of_particle[i]) + 1];
-    }
-    std::partial_sum(cell_start.begin(), cell_start.end(), cell_start.begin());
-    std::vector<std::int32_t> order(n);
-    {
-      std::vector<std::int32_t> fill(cell_start.begin(), cell_start.end() - 1);
-      for (std::size_t i = 0; i < n; ++i)
-        order[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of_particle[i])]++)] =
-            static_cast<std::int32_t>(i);
-    }
+    const CellOrder sorted = sort_by_cell(grid_, n, [&](std::size_t i) {
+      return Vec3{s.x[i], s.y[i], s.z[i]};
+    });
+    const std::vector<std::int32_t>& order = sorted.order;
+    const std::vector<std::int32_t>& cell_start = sorted.cell_start;
     for (auto* a : s.all) permute(*a, order);
     permute(id_, order);
     permute(radius_, order);

@@ -316,9 +316,12 @@ class Driver::Impl {
   void run_tasks() {
     std::size_t todo = 0;
     for (char d : done_) todo += d ? 0 : 1;
-    // Progress: a slot per fill (carried) or per point (independent); the first fills' work.
+    // Progress: a slot per fill (carried: the points it has run, resumed ones included) or per
+    // point (independent: its fills run in this session); the first fills' work, to which
+    // fills added later add theirs.
     const std::size_t slots = independent() ? frequencies_.size() : beds_.size();
-    const double total = double(todo) * (independent() ? fills_min_ : 1);
+    const double total =
+        independent() ? double(todo) * fills_min_ : double(frequencies_.size()) * fills_min_;
     Progress progress(quiet_, std::max(slots, beds_.size()), std::max(total, 1.0),
                       !fixed_duration(excitation()));
     progress_ = &progress;
@@ -433,8 +436,11 @@ class Driver::Impl {
       if (e.wants_fills && want_[s] < fills_max_) {
         const int next = more_fills(e, want_[s]);
         say_adding(s, e, want_[s], next);
-        for (auto r = static_cast<std::size_t>(want_[s]); r < static_cast<std::size_t>(next); ++r)
+        for (auto r = static_cast<std::size_t>(want_[s]); r < static_cast<std::size_t>(next); ++r) {
+          if (target_[r] < static_cast<long>(s))
+            progress_->add_total(double(static_cast<long>(s) - target_[r]));
           target_[r] = std::max(target_[r], static_cast<long>(s));
+        }
         want_[s] = next;
         continue;
       }
@@ -515,6 +521,7 @@ class Driver::Impl {
         if (!e.wants_fills || want >= fills_max_) break;
         const int next = more_fills(e, want);
         say_adding(s, e, want, next);
+        progress_->add_total(next - want);
         want = next;
       }
       std::lock_guard<std::mutex> lock(mutex_);

@@ -57,6 +57,11 @@ class Progress {
     }
     std::fflush(stderr);
   }
+  // More work than planned: fills sent to a point that wants them.
+  void add_total(double more) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    total_ += more;
+  }
   // A line of its own (a finished frequency), not overwritten by the progress line.
   void say(const std::string& line) {
     if (quiet_) return;

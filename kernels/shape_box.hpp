@@ -1,7 +1,8 @@
 // The box container: six flat walls, half edge lengths half_size. Everything pdsim knows of a
 // container shape is in its header (kernels/shapes.hpp lists them): its walls for the step
 // kernels (host and device), the near-wall test, and on the host the fill test, volume, size
-// limit and wireframe.
+// limit and wireframe. The kernels' functions are PDSIM_HOT: inlined into the particle loop,
+// which an out-of-line call would keep from vectorising.
 #pragma once
 
 #include <algorithm>
@@ -28,8 +29,8 @@ struct BoxShape {
   // at -half and +half with slots `slot` and slot + 1 and inward normals `low` and `high` (the
   // container frame): wall(slot, gap, normal) for each, escaped(distance beyond) once.
   template <class Wall, class Escaped>
-  PDSIM_HD static void slab(double along, double half, double r, int slot, Vec3 low, Vec3 high,
-                            Wall&& wall, Escaped&& escaped) {
+  PDSIM_HOT static void slab(double along, double half, double r, int slot, Vec3 low, Vec3 high,
+                             Wall&& wall, Escaped&& escaped) {
     if (fabs(along) > half - r) {
       wall(slot, along + half, low);
       wall(slot + 1, half - along, high);
@@ -40,8 +41,8 @@ struct BoxShape {
   // The walls a centre at `local` (container frame) of radius r may touch, in slot order:
   // wall(slot, gap, normal) (gap may exceed r: the caller skips those), escaped(beyond).
   template <class Wall, class Escaped>
-  PDSIM_HD static void walls(Vec3 local, double r, const ContainerGeometry& g, Wall&& wall,
-                             Escaped&& escaped) {
+  PDSIM_HOT static void walls(Vec3 local, double r, const ContainerGeometry& g, Wall&& wall,
+                              Escaped&& escaped) {
     const Vec3 h = g.half_size;
     slab(local.x, h.x, r, 0, {1, 0, 0}, {-1, 0, 0}, wall, escaped);
     slab(local.y, h.y, r, 2, {0, 1, 0}, {0, -1, 0}, wall, escaped);
@@ -57,7 +58,7 @@ struct BoxShape {
   }
 
   // Bounding test: may a centre at `local` of radius r touch a wall (or be outside)?
-  PDSIM_HD static bool near(Vec3 local, double r, const ContainerGeometry& g) {
+  PDSIM_HOT static bool near(Vec3 local, double r, const ContainerGeometry& g) {
     const Vec3 inner = g.half_size - Vec3{r, r, r};
     bool near = fabs(local.z) > inner.z;
     near |= (fabs(local.x) > inner.x) | (fabs(local.y) > inner.y);

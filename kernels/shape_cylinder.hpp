@@ -26,8 +26,8 @@ struct CylinderShape {
   }
 
   template <class Wall, class Escaped>
-  PDSIM_HD static void walls(Vec3 local, double r, const ContainerGeometry& g, Wall&& wall,
-                             Escaped&& escaped) {
+  PDSIM_HOT static void walls(Vec3 local, double r, const ContainerGeometry& g, Wall&& wall,
+                              Escaped&& escaped) {
     const double rho_sq = local.x * local.x + local.y * local.y;
     const double inner = g.radius - r;
     if (rho_sq > inner * inner) {
@@ -46,7 +46,7 @@ struct CylinderShape {
     return s.str();
   }
 
-  PDSIM_HD static bool near(Vec3 local, double r, const ContainerGeometry& g) {
+  PDSIM_HOT static bool near(Vec3 local, double r, const ContainerGeometry& g) {
     bool near = fabs(local.z) > g.half_size.z - r;
     const double inside = g.radius - r;
     near |= local.x * local.x + local.y * local.y > inside * inside;

@@ -30,11 +30,11 @@ std::string bed_fingerprint(const Scene& scene) {
     mix3(e.geometry.half_size), mix(e.geometry.radius);
     mix3(e.orientation.x), mix3(e.orientation.y), mix3(e.orientation.z);
     mix3(e.gravity.value_or(Vec3{})), mix(e.density);
-    const ContactParams& c = e.contact;
-    for (double v : {c.linear_stiffness, c.damping_factor, c.hertz_modulus_pp, c.hertz_modulus_pw,
-                     c.shear_modulus_pp, c.shear_modulus_pw, c.tangential_ratio, c.friction,
-                     c.rolling_friction})
-      mix(v);
+    // Every constant the kernels read, a field a law adds included.
+    static_assert(sizeof(ContactParams) % sizeof(double) == 0, "ContactParams holds doubles");
+    double constants[sizeof(ContactParams) / sizeof(double)];
+    std::memcpy(constants, &e.contact, sizeof constants);
+    for (double v : constants) mix(v);
     for (double r : e.radius) mix(r);
     for (const ParticleState& p : e.particles) mix3(p.position);
     s << " " << hash;

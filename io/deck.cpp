@@ -629,9 +629,8 @@ FrequencyStart read_start(const Table& t, bool prescribed) {
     const auto i = t.choice("start", {"carried", "independent"});
     return i && *i == 1 ? FrequencyStart::independent : FrequencyStart::carried;
   }
-  const FrequencyStart starts[] = {FrequencyStart::predicted, FrequencyStart::carried,
-                                   FrequencyStart::independent};
-  return starts[t.choice("start", {"predicted", "carried", "independent"}).value_or(0)];
+  const Names names(std::begin(kStartNames), std::end(kStartNames));
+  return static_cast<FrequencyStart>(t.choice("start", names).value_or(0));
 }
 
 ExcitationSpec read_excitation(const Table& t) {

@@ -329,19 +329,19 @@ void FrequencyRun::run_free_decay() {
   }
 }
 
+const std::vector<double FrequencyRun::*> FrequencyRun::kTallies = {
+    &FrequencyRun::dissipated_n_, &FrequencyRun::dissipated_t_,   &FrequencyRun::work_in_,
+    &FrequencyRun::next_sample_,  &FrequencyRun::restored_angle_, &FrequencyRun::dissipated_r_,
+    &FrequencyRun::dissipated_s_, &FrequencyRun::impulse_,        &FrequencyRun::impulse_time_};
+
 StateArrays FrequencyRun::save() const {
   StateArrays out = system_.save();
   const Drive& d = system_.drive();
-  out["run.tallies"] =
-      std::vector<double>{dissipated_n_,
-                          dissipated_t_,
-                          work_in_,
-                          next_sample_,
-                          d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0,
-                          dissipated_r_,
-                          dissipated_s_,
-                          impulse_,
-                          impulse_time_};
+  const double phase = d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0;
+  std::vector<double> tallies;
+  for (double FrequencyRun::*m : kTallies)
+    tallies.push_back(m == &FrequencyRun::restored_angle_ ? phase : this->*m);
+  out["run.tallies"] = std::move(tallies);
   if (particles_) out["run.next_snapshot"] = std::vector<double>{next_snapshot_};
   out["run.effective_mass"] = effective_mass_;
   out["run.effective_damping"] = effective_damping_;
@@ -353,17 +353,11 @@ void FrequencyRun::restore(const StateArrays& state) {
   system_.restore(state);
   ongoing_.reset();  // a restored state is between frequencies
   const auto& t = state_values<double>(state, "run.tallies");
-  if (t.size() != 9) throw SimulationError("the checkpoint's run.tallies should hold 9 values");
-  dissipated_n_ = t[0];
-  dissipated_t_ = t[1];
-  work_in_ = t[2];
-  next_sample_ = t[3];
+  if (t.size() != kTallies.size())
+    throw SimulationError("the checkpoint's run.tallies should hold " +
+                          std::to_string(kTallies.size()) + " values");
+  for (std::size_t k = 0; k < t.size(); ++k) this->*kTallies[k] = t[k];
   if (particles_) next_snapshot_ = state_value<double>(state, "run.next_snapshot");
-  restored_angle_ = t[4];
-  dissipated_r_ = t[5];
-  dissipated_s_ = t[6];
-  impulse_ = t[7];
-  impulse_time_ = t[8];
   restored_ = true;
   effective_mass_ = state_values<double>(state, "run.effective_mass");
   effective_damping_ = state_values<double>(state, "run.effective_damping");

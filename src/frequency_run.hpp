@@ -122,6 +122,9 @@ class FrequencyRun {
   double impulse_ = 0, impulse_time_ = 0;
   // The drive's phase at a restored state (the restored system has no drive yet).
   double restored_angle_ = 0;
+  // The tallies above as the checkpoint keeps them (run.tallies), in their places; a new one is
+  // a line, appended. restored_angle_'s place holds the drive's phase when saved.
+  static const std::vector<double FrequencyRun::*> kTallies;
   bool restored_ = false;
   // The dampers as the prediction sees them: an effective mass (kg) and viscous damping
   // (N s/m) from the last frequency's measured impedance, and the mean force (N); before

@@ -76,6 +76,11 @@ struct ContainerKinematics {
   Vec3 angular_velocity;                                   // rad/s
 };
 
+// Its axes at rest: those of `o` (the container does not turn).
+inline void set_axes(ContainerKinematics& k, const Orientation& o) {
+  k.axis_x = o.x, k.axis_y = o.y, k.axis_z = o.z;
+}
+
 // A container that translates without turning.
 inline ContainerKinematics translating(Vec3 position, Vec3 velocity) {
   ContainerKinematics k;

@@ -169,7 +169,7 @@ ContainerKinematics CoupledSystem::container(std::size_t damper, double u, doubl
     k.axis_z = turn(rest.z);
     k.angular_velocity = theta_dot * a;
   } else {
-    k.axis_x = rest.x, k.axis_y = rest.y, k.axis_z = rest.z;
+    set_axes(k, rest);
   }
   return k;
 }
@@ -270,7 +270,8 @@ void CoupledSystem::step_prescribed() {
   last_.displacement = u;
   last_.velocity = dot(moving.velocity, m.axis);
   for (std::size_t k = 0; k < engines_.size(); ++k) {
-    const ContainerKinematics kin = container_now(k);  // its own axes
+    ContainerKinematics kin = moving;  // computed once a step; each container its own axes
+    set_axes(kin, orientation(k));
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
     if (totals.flags) check(totals, k, kin, when(time_));
     engines_[k]->accept();
@@ -448,8 +449,7 @@ ContainerKinematics CoupledSystem::container_now(std::size_t k) const {
     ContainerKinematics c =
         translating(m.amplitude * std::sin(drive_.angle(time_)) * m.axis,
                     m.amplitude * drive_.omega * std::cos(drive_.angle(time_)) * m.axis);
-    const Orientation& rest = orientation(k);
-    c.axis_x = rest.x, c.axis_y = rest.y, c.axis_z = rest.z;
+    set_axes(c, orientation(k));
     return c;
   }
   const int row = static_cast<int>(k);

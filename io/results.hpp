@@ -1,6 +1,7 @@
 // Everything a run produces, in SI units, and the HDF5 writer/reader for it (brief section 6).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -8,6 +9,7 @@
 #include <vector>
 
 #include "kernels/state_arrays.hpp"
+#include "kernels/tallies.hpp"
 
 namespace pdsim {
 
@@ -47,8 +49,8 @@ inline constexpr const char* kIntervalKinds =
 struct FrfTable {
   std::vector<double> frequency, amplitude, amplitude_ci, phase, phase_ci, rms, peak;
   std::vector<int> periods, periods_discarded, converged, realisations, interval;
-  std::vector<double> dissipated_energy, dissipated_energy_ci, dissipated_normal,
-      dissipated_tangential, dissipated_rolling;
+  std::vector<double> dissipated_energy, dissipated_energy_ci;
+  std::array<std::vector<double>, kMechanisms> dissipated;  // J per period, by mechanism
   std::vector<int> sweep, result, branches;
   std::vector<double> amplitude_spread, phase_spread;
 };
@@ -91,10 +93,8 @@ void frf_columns(T& t, F&& f) {
     "energy the containers put into the particles per period (= dissipated in them when "
     "stationary)");
   f("dissipated_energy_ci", t.dissipated_energy_ci, "J", "95 % half-width of dissipated_energy");
-  f("dissipated_normal", t.dissipated_normal, "J", "per period, normal contact damping");
-  f("dissipated_tangential", t.dissipated_tangential, "J",
-    "per period, friction and tangential damping");
-  f("dissipated_rolling", t.dissipated_rolling, "J", "per period, rolling resistance");
+  for (int m = 0; m < kMechanisms; ++m)
+    f(kMechanismColumns[m].name, t.dissipated[m], "J", kMechanismColumns[m].per_period);
 }
 
 // /frf/fills: every fill's own value at every point.
@@ -221,8 +221,9 @@ struct ParticleSnapshots {
 };
 
 struct EnergySeries {
-  std::vector<double> time, work_in, dissipated_structure, dissipated_normal, dissipated_tangential,
-      dissipated_rolling, kinetic, potential, imbalance;
+  std::vector<double> time, work_in, dissipated_structure;
+  std::array<std::vector<double>, kMechanisms> dissipated;  // J, cumulative, by mechanism
+  std::vector<double> kinetic, potential, imbalance;
 };
 template <class T, class F>
 void energy_columns(T& t, F&& f) {
@@ -232,11 +233,8 @@ void energy_columns(T& t, F&& f) {
     "the structure and through it on the dampers; the containers' for prescribed motion; with "
     "the energy a new frequency's drive or predicted start puts in");
   f("dissipated_structure", t.dissipated_structure, "J", "cumulative, structural damping");
-  f("dissipated_normal", t.dissipated_normal, "J", "cumulative, normal contact damping");
-  f("dissipated_tangential", t.dissipated_tangential, "J",
-    "cumulative, friction and tangential damping (with the Mindlin spring's energy change as "
-    "its stiffness follows the overlap)");
-  f("dissipated_rolling", t.dissipated_rolling, "J", "cumulative, rolling resistance");
+  for (int m = 0; m < kMechanisms; ++m)
+    f(kMechanismColumns[m].name, t.dissipated[m], "J", kMechanismColumns[m].cumulative);
   f("kinetic", t.kinetic, "J",
     "inertial frame: the structure's (with the base's motion), the particles' translation and "
     "rotation");

@@ -1,6 +1,6 @@
 // Tangential contact laws, chosen per scene as a template tag. `force` returns the tangential
 // force on the particle and adds to `d` the energy its dissipative elements take out in the
-// step (d.tangential) and, for a law with history, its spring's energies (see Dissipation).
+// step (d.tangential) and, for a law with history, its spring's energies (kernels/tallies.hpp).
 //
 // The particles advance by semi-implicit Euler (particle_step.hpp: v' = v + dt F/m, then
 // x' = x + dt v'), a leapfrog whose stored velocity v is the one of the half step before the
@@ -13,21 +13,9 @@
 #pragma once
 
 #include "kernels/contact_normal.hpp"
+#include "kernels/tallies.hpp"
 
 namespace pdsim {
-
-// Energy the dissipative elements of contacts take out in a step, J, by mechanism: the normal
-// dashpot; the tangential dashpot, Coulomb cap or directional friction; rolling resistance.
-// With it the energy in the contacts' springs at the start of the step (`elastic`, in the
-// leapfrog form, see contact() in particle_step.hpp), and the tangential springs' 1/2 kt s^2 at
-// this step's stiffness, as carried in (`spring_in`) and as left by the step (`spring_out`).
-// Between the last step's spring_out and this step's spring_in the springs lose energy that no
-// force's work accounts for: that of contacts that ended (their history is dropped) and
-// Mindlin's stiffness change (kt follows the overlap while s is held). The coupled system
-// tallies it as friction's (CoupledSystem::account_springs).
-struct Dissipation {
-  double normal = 0, tangential = 0, rolling = 0, elastic = 0, spring_in = 0, spring_out = 0;
-};
 
 // Work of the dissipative force `f_damp` over the step, at the mid-step relative velocity
 // v + dt f / (2 m) of a contact whose total force is `f` (see above).

@@ -23,15 +23,6 @@
 
 namespace pdsim {
 
-PDSIM_HD void add_dissipation(ParticleContribution& sum, const Dissipation& d) {
-  sum.dissipated_normal += d.normal;
-  sum.dissipated_tangential += d.tangential;
-  sum.dissipated_rolling += d.rolling;
-  sum.elastic += d.elastic;
-  sum.spring_in += d.spring_in;
-  sum.spring_out += d.spring_out;
-}
-
 PDSIM_HD Vec3 load3(const double* a, int k) {
   return {a[3 * k], a[3 * k + 1], a[3 * k + 2]};
 }
@@ -211,7 +202,7 @@ PDSIM_HD void pair_contacts(int i, std::uint64_t touching, const ParticleStepArg
       xi = slot_history(a.history.neighbour_in, base + k, had >> k & 1u);
     Dissipation dissipated;
     store_slot_loads<V>(base + k, a, pair_contact<V>(i, base + k, xi, a, dissipated));
-    add_dissipation(sum, dissipated);
+    add_tallies(sum.tally, dissipated);
     if constexpr (V::Tangential::kHistory) store3(a.history.neighbour_out, base + k, xi);
     raise_flag(a.incoming + a.neighbours[base + k]);
   }
@@ -331,7 +322,7 @@ PDSIM_HD Load wall_contacts(int i, const ParticleStepArgs& a, ParticleContributi
       xi = slot_history(a.history.wall_in, i * kWallSlots + slot, had >> slot & 1u);
     Dissipation dissipated;
     const Load l = wall_contact<V>(i, gap, normal, xi, a, dissipated);
-    add_dissipation(sum, dissipated);
+    add_tallies(sum.tally, dissipated);
     if constexpr (V::Tangential::kHistory) store3(a.history.wall_out, i * kWallSlots + slot, xi);
     touched = static_cast<std::uint8_t>(touched | (1u << slot));
     load.force += l.force;

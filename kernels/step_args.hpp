@@ -8,6 +8,7 @@
 
 #include "kernels/dem_types.hpp"
 #include "kernels/shapes.hpp"
+#include "kernels/tallies.hpp"
 
 namespace pdsim {
 
@@ -110,11 +111,9 @@ constexpr int pair_doubles() {
 
 // What one particle adds to the step totals (reduced by the launcher in a fixed order).
 struct ParticleContribution {
-  Vec3 wall_force;   // on the container
-  Vec3 wall_torque;  // on the container, about its centre (Rotating variants only)
-  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;  // J
-  double elastic = 0;  // J, in the contact springs at the start of the step (energy ledger)
-  double spring_in = 0, spring_out = 0;  // J, tangential springs (see Dissipation)
+  Vec3 wall_force;    // on the container
+  Vec3 wall_torque;   // on the container, about its centre (Rotating variants only)
+  Dissipation tally;  // J, over its contacts (kernels/tallies.hpp)
   double kinetic = 0;
   double speed_sq = 0;  // largest |v|^2 at the end of the step (bounds the drift since a rebuild)
   int flags = 0;
@@ -123,12 +122,7 @@ struct ParticleContribution {
 PDSIM_HD void accumulate(ParticleContribution& sum, const ParticleContribution& c) {
   sum.wall_force += c.wall_force;
   sum.wall_torque += c.wall_torque;
-  sum.dissipated_normal += c.dissipated_normal;
-  sum.dissipated_tangential += c.dissipated_tangential;
-  sum.dissipated_rolling += c.dissipated_rolling;
-  sum.elastic += c.elastic;
-  sum.spring_in += c.spring_in;
-  sum.spring_out += c.spring_out;
+  add_tallies(sum.tally, c.tally);
   sum.kinetic += c.kinetic;
   sum.speed_sq = max_of(sum.speed_sq, c.speed_sq);
   sum.flags |= c.flags;

@@ -214,15 +214,15 @@ Energy CoupledSystem::state_energy() const {
 }
 
 void CoupledSystem::account_springs(std::size_t k, const StepTotals& totals, double& tangential) {
-  tangential += spring_energy_[k] - totals.spring_in;
-  pending_spring_energy_[k] = totals.spring_out;
+  tangential += spring_energy_[k] - totals.tally.spring_in;
+  pending_spring_energy_[k] = totals.tally.spring_out;
 }
 
 // Runs one DEM step of every damper with the container at displacement u_k(t) + lead * u_dot_k,
 // accepting it unless `accept` is false; returns the power the containers put into the particles.
 double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>& force_along) {
   double power = 0;
-  last_.dissipated_normal = last_.dissipated_tangential = last_.dissipated_rolling = 0;
+  last_.dissipated = {};
   last_.particle_kinetic = last_.contact_elastic = last_.work_external = 0;
   for (std::size_t k = 0; k < engines_.size(); ++k) {
     const int row = static_cast<int>(k);
@@ -240,11 +240,9 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
     power -= dot(totals.wall_force, kin.velocity) + dot(totals.wall_torque, kin.angular_velocity);
     // The part of that power the base's motion supplies (the structure supplies the rest).
     last_.work_external -= force_along[k] * drive_.base_velocity(t) * dt_;
-    last_.dissipated_normal += totals.dissipated_normal;
-    last_.dissipated_tangential += totals.dissipated_tangential;
-    account_springs(k, totals, last_.dissipated_tangential);
-    last_.dissipated_rolling += totals.dissipated_rolling;
-    last_.contact_elastic += totals.elastic;
+    last_.dissipated += dissipated_part(totals.tally);
+    account_springs(k, totals, last_.dissipated[kTangential]);
+    last_.contact_elastic += totals.tally.elastic;
     last_.particle_kinetic += totals.kinetic;
     particle_steps_ += engines_[k]->count();
   }
@@ -275,16 +273,14 @@ void CoupledSystem::step_prescribed() {
     const StepTotals& totals = engines_[k]->compute(kin, dt_);
     if (totals.flags) check(totals, k, kin, when(time_));
     engines_[k]->accept();
-    account_springs(k, totals, last_.dissipated_tangential);
+    account_springs(k, totals, last_.dissipated[kTangential]);
     spring_energy_[k] = pending_spring_energy_[k];
     displacement_[k] = u;
     force_mean_[k] = dot(totals.wall_force, m.axis);
     last_.damper_force += force_mean_[k];
     last_.power_in -= dot(totals.wall_force, kin.velocity);
-    last_.contact_elastic += totals.elastic;
-    last_.dissipated_normal += totals.dissipated_normal;
-    last_.dissipated_tangential += totals.dissipated_tangential;
-    last_.dissipated_rolling += totals.dissipated_rolling;
+    last_.contact_elastic += totals.tally.elastic;
+    last_.dissipated += dissipated_part(totals.tally);
     last_.particle_kinetic += totals.kinetic;
     particle_steps_ += engines_[k]->count();
   }
@@ -307,7 +303,8 @@ void CoupledSystem::step_explicit(bool impulse) {
   // The DEM sub-steps see the container extrapolated linearly over the coupling interval.
   std::fill(force_sum_.begin(), force_sum_.end(), 0.0);
   std::fill(torque_sum_.begin(), torque_sum_.end(), 0.0);
-  double power = 0, dissipated_n = 0, dissipated_t = 0, dissipated_r = 0, work_base = 0;
+  double power = 0, work_base = 0;
+  Dissipated dissipated{};
   double elastic = 0;
   const double base_before = base_energy(t0);
   for (int s = 0; s < every_; ++s) {
@@ -320,9 +317,7 @@ void CoupledSystem::step_explicit(bool impulse) {
       force_sum_[k] += force_[k];
       torque_sum_[k] += torque_[k];
     }
-    dissipated_n += last_.dissipated_normal;
-    dissipated_t += last_.dissipated_tangential;
-    dissipated_r += last_.dissipated_rolling;
+    dissipated += last_.dissipated;
   }
   const double h = every_ * dt_;
   damper_load_.setZero();
@@ -350,9 +345,7 @@ void CoupledSystem::step_explicit(bool impulse) {
   }
   last_.damper_force = total_force;
   last_.power_in = engines_.empty() ? 0.0 : power / every_;
-  last_.dissipated_normal = dissipated_n;
-  last_.dissipated_tangential = dissipated_t;
-  last_.dissipated_rolling = dissipated_r;
+  last_.dissipated = dissipated;
   last_.contact_elastic = elastic;
   // Over the drift, the trapezoidal rule (h is a DEM step or a few: O((omega h)^2) small).
   last_.dissipated_structure = 0.5 * h * (damping_power(v_start_) + damping_power(integrator_->v));
@@ -435,7 +428,7 @@ double CoupledSystem::settle_step(double dt) {
     if (totals.flags)
       check(totals, k, kin, "while the bed settled (dt " + std::to_string(dt) + " s)");
     engines_[k]->accept();
-    spring_energy_[k] = totals.spring_out;
+    spring_energy_[k] = totals.tally.spring_out;
     speed_sq = std::max(speed_sq, totals.speed_sq);
     particle_steps_ += engines_[k]->count();
   }

@@ -33,11 +33,11 @@ struct Drive {
 // What the last step saw at its start time (the sample the steady-state detector takes).
 struct StepRecord {
   double time = 0;
-  double displacement = 0;  // m, response DOF (relative to the base for base input)
-  double velocity = 0;      // m/s
-  double damper_force = 0;  // N, force of the particles on the container(s) along `direction`
-  double power_in = 0;      // W, power the containers put into the particles
-  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;  // J, step
+  double displacement = 0;      // m, response DOF (relative to the base for base input)
+  double velocity = 0;          // m/s
+  double damper_force = 0;      // N, force of the particles on the container(s) along `direction`
+  double power_in = 0;          // W, power the containers put into the particles
+  Dissipated dissipated{};      // J, this step, by mechanism (kernels/tallies.hpp)
   double particle_kinetic = 0;  // J after the step
   // J, work of the input in this step in the inertial frame: the external force's, or the
   // base's (on the structure, and through it on the dampers; prescribed motion: the

@@ -146,25 +146,21 @@ void FrequencyRun::step() {
       e.time.push_back(r.time);
       e.work_in.push_back(work_in_);
       e.dissipated_structure.push_back(dissipated_s_);
-      e.dissipated_normal.push_back(dissipated_n_);
-      e.dissipated_tangential.push_back(dissipated_t_);
-      e.dissipated_rolling.push_back(dissipated_r_);
+      for (int m = 0; m < kMechanisms; ++m) e.dissipated[m].push_back(dissipated_[m]);
       e.kinetic.push_back(state.kinetic);
       e.potential.push_back(state.potential + r.contact_elastic);
       // Against the first sample, the ledger's origin.
       auto change = [&](const std::vector<double>& column) { return column.back() - column[0]; };
-      e.imbalance.push_back(change(e.work_in) - change(e.dissipated_structure) -
-                            change(e.dissipated_normal) - change(e.dissipated_tangential) -
-                            change(e.dissipated_rolling) - change(e.kinetic) - change(e.potential));
+      double balance = change(e.work_in) - change(e.dissipated_structure);
+      for (const auto& column : e.dissipated) balance -= change(column);
+      e.imbalance.push_back(balance - change(e.kinetic) - change(e.potential));
     }
   }
   const double h = system_.time() - r.time;  // the step (or coupling interval) just taken
   impulse_ += r.damper_force * h;
   impulse_time_ += h;
   dissipated_s_ += r.dissipated_structure;
-  dissipated_n_ += r.dissipated_normal;
-  dissipated_t_ += r.dissipated_tangential;
-  dissipated_r_ += r.dissipated_rolling;
+  dissipated_ += r.dissipated;
   work_in_ += r.work_external;
   if (!std::isfinite(r.displacement))
     throw SimulationError(
@@ -329,18 +325,28 @@ void FrequencyRun::run_free_decay() {
   }
 }
 
-const std::vector<double FrequencyRun::*> FrequencyRun::kTallies = {
-    &FrequencyRun::dissipated_n_, &FrequencyRun::dissipated_t_,   &FrequencyRun::work_in_,
-    &FrequencyRun::next_sample_,  &FrequencyRun::restored_angle_, &FrequencyRun::dissipated_r_,
-    &FrequencyRun::dissipated_s_, &FrequencyRun::impulse_,        &FrequencyRun::impulse_time_};
+template <class Run>
+auto FrequencyRun::tally_places(Run& run) {
+  auto places = std::vector{&run.dissipated_[kNormal],
+                            &run.dissipated_[kTangential],
+                            &run.work_in_,
+                            &run.next_sample_,
+                            &run.restored_angle_,
+                            &run.dissipated_[kRolling],
+                            &run.dissipated_s_,
+                            &run.impulse_,
+                            &run.impulse_time_};
+  for (int m = kRolling + 1; m < kMechanisms; ++m) places.push_back(&run.dissipated_[m]);
+  return places;
+}
 
 StateArrays FrequencyRun::save() const {
   StateArrays out = system_.save();
   const Drive& d = system_.drive();
   const double phase = d.omega > 0 ? std::fmod(d.angle(system_.time()), 2 * kPi) : 0.0;
   std::vector<double> tallies;
-  for (double FrequencyRun::*m : kTallies)
-    tallies.push_back(m == &FrequencyRun::restored_angle_ ? phase : this->*m);
+  for (const double* place : tally_places(*this))
+    tallies.push_back(place == &restored_angle_ ? phase : *place);
   out["run.tallies"] = std::move(tallies);
   if (particles_) out["run.next_snapshot"] = std::vector<double>{next_snapshot_};
   out["run.effective_mass"] = effective_mass_;
@@ -353,10 +359,11 @@ void FrequencyRun::restore(const StateArrays& state) {
   system_.restore(state);
   ongoing_.reset();  // a restored state is between frequencies
   const auto& t = state_values<double>(state, "run.tallies");
-  if (t.size() != kTallies.size())
+  const std::vector<double*> places = tally_places(*this);
+  if (t.size() != places.size())
     throw SimulationError("the checkpoint's run.tallies should hold " +
-                          std::to_string(kTallies.size()) + " values");
-  for (std::size_t k = 0; k < t.size(); ++k) this->*kTallies[k] = t[k];
+                          std::to_string(places.size()) + " values");
+  for (std::size_t k = 0; k < t.size(); ++k) *places[k] = t[k];
   if (particles_) next_snapshot_ = state_value<double>(state, "run.next_snapshot");
   restored_ = true;
   effective_mass_ = state_values<double>(state, "run.effective_mass");

@@ -117,14 +117,17 @@ class FrequencyRun {
   double dt_ = 0, sample_every_ = 0, next_sample_ = 0, frequency_ = 0, next_snapshot_ = 0;
   void snapshot();  // the particles and containers now, into particles_
   // The ledger's cumulative terms, J (see energy_columns).
-  double dissipated_n_ = 0, dissipated_t_ = 0, dissipated_r_ = 0, dissipated_s_ = 0, work_in_ = 0;
+  Dissipated dissipated_{};
+  double dissipated_s_ = 0, work_in_ = 0;
   // The damper force's impulse (N s) over the time (s) since the last time-series sample.
   double impulse_ = 0, impulse_time_ = 0;
   // The drive's phase at a restored state (the restored system has no drive yet).
   double restored_angle_ = 0;
   // The tallies above as the checkpoint keeps them (run.tallies), in their places; a new one is
-  // a line, appended. restored_angle_'s place holds the drive's phase when saved.
-  static const std::vector<double FrequencyRun::*> kTallies;
+  // appended (mechanisms after the first three are, from kMechanisms). restored_angle_'s place
+  // holds the drive's phase when saved.
+  template <class Run>
+  static auto tally_places(Run& run);
   bool restored_ = false;
   // The dampers as the prediction sees them: an effective mass (kg) and viscous damping
   // (N s/m) from the last frequency's measured impedance, and the mean force (N); before

@@ -19,7 +19,7 @@ struct PeriodSummary {
   double mean_square = 0;             // m^2
   double peak = 0;                    // m
   double energy_in = 0;               // J the containers put into the particles this period
-  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0;  // J, period
+  Dissipated dissipated{};            // J, this period, by mechanism
   // Per damper: its container's absolute displacement (m) and its force (N), first harmonic
   // and mean (the force's mean is its constant part: a weight along the direction).
   std::vector<std::complex<double>> container, damper_force;
@@ -43,9 +43,7 @@ class PeriodTracker {
     acc_.mean_square += r.displacement * r.displacement / n_;
     acc_.peak = std::max(acc_.peak, std::fabs(r.displacement));
     acc_.energy_in += r.power_in * h;
-    acc_.dissipated_normal += r.dissipated_normal;
-    acc_.dissipated_tangential += r.dissipated_tangential;
-    acc_.dissipated_rolling += r.dissipated_rolling;
+    acc_.dissipated += r.dissipated;
     for (std::size_t k = 0; k < container.size(); ++k) {
       acc_.container[k] += w * container[k];
       acc_.damper_force[k] += w * damper_force[k];
@@ -80,9 +78,7 @@ class PeriodTracker {
       m.mean_square += p.mean_square / used;
       m.peak = std::max(m.peak, p.peak);
       m.energy_in += p.energy_in / used;
-      m.dissipated_normal += p.dissipated_normal / used;
-      m.dissipated_tangential += p.dissipated_tangential / used;
-      m.dissipated_rolling += p.dissipated_rolling / used;
+      for (int d = 0; d < kMechanisms; ++d) m.dissipated[d] += p.dissipated[d] / used;
       for (std::size_t d = 0; d < m.container.size(); ++d) {
         m.container[d] += p.container[d] / double(used);
         m.damper_force[d] += p.damper_force[d] / double(used);

@@ -1,6 +1,7 @@
 #include "src/point_checkpoint.hpp"
 
 #include <cmath>
+#include <utility>
 
 namespace pdsim {
 
@@ -37,39 +38,55 @@ bool to_bool(double v) {
   return v != 0;
 }
 
-const PointField kPointFields[] = {
-    PDSIM_POINT_FIELD(frequency, same, same, nullptr),
-    {[](const FrequencyPoint& p) { return p.judged.mean.real(); },
-     [](FrequencyPoint& p, double v) { p.judged.mean.real(v); }, nullptr},
-    {[](const FrequencyPoint& p) { return p.judged.mean.imag(); },
-     [](FrequencyPoint& p, double v) { p.judged.mean.imag(v); }, nullptr},
-    PDSIM_POINT_FIELD(judged.amplitude_ci, same, same, nullptr),
-    PDSIM_POINT_FIELD(judged.phase_ci, same, same, nullptr),
-    PDSIM_POINT_FIELD(judged.discarded, from_int, to_int, nullptr),
-    PDSIM_POINT_FIELD(judged.batch_length, from_int, to_int, nullptr),
-    PDSIM_POINT_FIELD(judged.batches, from_int, to_int, nullptr),
-    PDSIM_POINT_FIELD(judged.periods, from_int, to_int, nullptr),
-    PDSIM_POINT_FIELD(judged.lag1, same, same, nullptr),
-    PDSIM_POINT_FIELD(judged.trend, from_bool, to_bool, nullptr),
-    PDSIM_POINT_FIELD(judged.converged, from_bool, to_bool, nullptr),
-    PDSIM_POINT_FIELD(mean.mean_square, same, same, nullptr),
-    PDSIM_POINT_FIELD(mean.peak, same, same, nullptr),
-    PDSIM_POINT_FIELD(energy_in.mean, same, same, nullptr),
-    PDSIM_POINT_FIELD(energy_in.half_width, same, same, nullptr),
-    PDSIM_POINT_FIELD(mean.dissipated_normal, same, same, nullptr),
-    PDSIM_POINT_FIELD(mean.dissipated_tangential, same, same, nullptr),
-    // Kept since rolling resistance was tallied; before, it was not measured.
-    PDSIM_POINT_FIELD(mean.dissipated_rolling, same, same,
-                      [](FrequencyPoint& p) { p.mean.dissipated_rolling = std::nan(""); }),
-    // Kept since a fill held still counts as settled; before, only converged fills did.
-    PDSIM_POINT_FIELD(judged.stationary, from_bool, to_bool,
-                      [](FrequencyPoint& p) { p.judged.stationary = p.judged.converged; }),
-};
+// A dissipation mechanism added after the checkpoint's layout was fixed: NaN in older ones.
+template <int M>
+PointField later_mechanism() {
+  return {[](const FrequencyPoint& p) { return p.mean.dissipated[M]; },
+          [](FrequencyPoint& p, double v) { p.mean.dissipated[M] = v; },
+          [](FrequencyPoint& p) { p.mean.dissipated[M] = std::nan(""); }};
+}
+template <std::size_t... M>
+void append_later_mechanisms(std::vector<PointField>& fields, std::index_sequence<M...>) {
+  (fields.push_back(later_mechanism<kRolling + 1 + int(M)>()), ...);
+}
+
+const std::vector<PointField> kPointFields = [] {
+  std::vector<PointField> fields = {
+      PDSIM_POINT_FIELD(frequency, same, same, nullptr),
+      {[](const FrequencyPoint& p) { return p.judged.mean.real(); },
+       [](FrequencyPoint& p, double v) { p.judged.mean.real(v); }, nullptr},
+      {[](const FrequencyPoint& p) { return p.judged.mean.imag(); },
+       [](FrequencyPoint& p, double v) { p.judged.mean.imag(v); }, nullptr},
+      PDSIM_POINT_FIELD(judged.amplitude_ci, same, same, nullptr),
+      PDSIM_POINT_FIELD(judged.phase_ci, same, same, nullptr),
+      PDSIM_POINT_FIELD(judged.discarded, from_int, to_int, nullptr),
+      PDSIM_POINT_FIELD(judged.batch_length, from_int, to_int, nullptr),
+      PDSIM_POINT_FIELD(judged.batches, from_int, to_int, nullptr),
+      PDSIM_POINT_FIELD(judged.periods, from_int, to_int, nullptr),
+      PDSIM_POINT_FIELD(judged.lag1, same, same, nullptr),
+      PDSIM_POINT_FIELD(judged.trend, from_bool, to_bool, nullptr),
+      PDSIM_POINT_FIELD(judged.converged, from_bool, to_bool, nullptr),
+      PDSIM_POINT_FIELD(mean.mean_square, same, same, nullptr),
+      PDSIM_POINT_FIELD(mean.peak, same, same, nullptr),
+      PDSIM_POINT_FIELD(energy_in.mean, same, same, nullptr),
+      PDSIM_POINT_FIELD(energy_in.half_width, same, same, nullptr),
+      PDSIM_POINT_FIELD(mean.dissipated[kNormal], same, same, nullptr),
+      PDSIM_POINT_FIELD(mean.dissipated[kTangential], same, same, nullptr),
+      // Kept since rolling resistance was tallied; before, it was not measured.
+      PDSIM_POINT_FIELD(mean.dissipated[kRolling], same, same,
+                        [](FrequencyPoint& p) { p.mean.dissipated[kRolling] = std::nan(""); }),
+      // Kept since a fill held still counts as settled; before, only converged fills did.
+      PDSIM_POINT_FIELD(judged.stationary, from_bool, to_bool,
+                        [](FrequencyPoint& p) { p.judged.stationary = p.judged.converged; }),
+  };
+  append_later_mechanisms(fields, std::make_index_sequence<kMechanisms - kRolling - 1>());
+  return fields;
+}();
 #undef PDSIM_POINT_FIELD
 
-constexpr std::size_t kFields = std::size(kPointFields);
+const std::size_t kFields = kPointFields.size();
 // The fields every checkpoint holds: those that were kept from the start.
-constexpr std::size_t kAlwaysKept = [] {
+const std::size_t kAlwaysKept = [] {
   std::size_t n = 0;
   while (n < kFields && kPointFields[n].absent == nullptr) ++n;
   return n;

@@ -61,16 +61,15 @@ void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fi
   const Ensemble e = judge_fills(runs, x);
   const GroupMean& m = e.mean;
   std::vector<RunMean> energy;
-  std::vector<double> rms, dn, dt, dr;
+  std::vector<double> rms;
+  std::array<std::vector<double>, kMechanisms> dissipated;
   double peak = 0;
   int periods = 0, discarded = 0;
   for (const FrequencyPoint& p : runs) {
     energy.push_back({p.energy_in.mean, p.energy_in.half_width, p.judged.batches - 1});
     rms.push_back(std::sqrt(p.mean.mean_square));
     peak = std::max(peak, p.mean.peak);
-    dn.push_back(p.mean.dissipated_normal);
-    dt.push_back(p.mean.dissipated_tangential);
-    dr.push_back(p.mean.dissipated_rolling);
+    for (int d = 0; d < kMechanisms; ++d) dissipated[d].push_back(p.mean.dissipated[d]);
     periods = std::max(periods, p.judged.periods);
     discarded = std::max(discarded, p.judged.discarded);
   }
@@ -134,9 +133,7 @@ void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fi
   f.interval.push_back(interval);
   f.dissipated_energy.push_back(energy_in.mean);
   f.dissipated_energy_ci.push_back(energy_in.half_width);
-  f.dissipated_normal.push_back(average(dn));
-  f.dissipated_tangential.push_back(average(dt));
-  f.dissipated_rolling.push_back(average(dr));
+  for (int d = 0; d < kMechanisms; ++d) f.dissipated[d].push_back(average(dissipated[d]));
   for (std::size_t k = 0; k < fills.size(); ++k) {
     const auto& [r, p] = fills[k];
     FillTable& t = out.fills;

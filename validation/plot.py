@@ -97,18 +97,15 @@ def energy(args):
     e, title = group(args.file, "energy")
     t = e["time"]
     since = {key: e[key] - e[key][0] for key in e if key != "time"}
-    dissipated = sum(since[k] for k in ("dissipated_structure", "dissipated_normal",
-                                        "dissipated_tangential", "dissipated_rolling"))
+    mechanisms = [k for k in e if k.startswith("dissipated_")]  # structure and the contacts'
+    dissipated = sum(since[k] for k in mechanisms)
     figure, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 6),
                                          gridspec_kw={"height_ratios": [3, 1]})
     top.plot(t, since["work_in"], "k-", label="work of the input")
     top.plot(t, dissipated, "k--", label="dissipated, all mechanisms")
-    for key, label in (("dissipated_normal", "normal contact damping"),
-                       ("dissipated_tangential", "friction (tangential)"),
-                       ("dissipated_rolling", "rolling resistance"),
-                       ("dissipated_structure", "structural damping")):
+    for key in mechanisms:
         if np.any(since[key] != 0):
-            top.plot(t, since[key], label=label)
+            top.plot(t, since[key], label="dissipated, " + key.removeprefix("dissipated_"))
     top.plot(t, since["kinetic"] + since["potential"], ":", label="stored (kinetic + potential)")
     top.set_ylabel("energy since the first sample (J)")
     top.legend(fontsize="small")

@@ -91,6 +91,35 @@ struct ContactBatch {
   }
 };
 
+// Whether variant V's contacts can add to tally T; the others stay zero and are not summed.
+template <class V, int T>
+constexpr bool tallied() {
+  if constexpr (T == kRolling) return V::kRolling;
+  if constexpr (T == kSpringIn || T == kSpringOut) return V::Tangential::kHistory;
+  return true;
+}
+
+// Adds entry e's tally T to its SIMD lane's sum (the padding's, `counted` false, add nothing).
+template <class V, int T>
+inline void add_lane(double& sum, const Dissipation& d, bool counted) {
+  if constexpr (tallied<V, T>()) sum += counted ? tally<T>(d) : 0.0;
+}
+
+// The contact loops' lanes' sums are scalars, one per Tally, named in their reduction clauses:
+// OpenMP reduces scalars in registers, and an array in memory, which cost a third.
+static_assert(kTallyCount == 6, "a lane sum per Tally in the loops below");
+template <class V>
+inline void add_lanes(const Dissipation& d, bool counted, double& t0, double& t1, double& t2,
+                      double& t3, double& t4, double& t5) {
+  add_lane<V, 0>(t0, d, counted), add_lane<V, 1>(t1, d, counted);
+  add_lane<V, 2>(t2, d, counted), add_lane<V, 3>(t3, d, counted);
+  add_lane<V, 4>(t4, d, counted), add_lane<V, 5>(t5, d, counted);
+}
+inline void add_sums(Dissipation& total, double t0, double t1, double t2, double t3, double t4,
+                     double t5) {
+  add_tallies(total, {t0, t1, t2, t3, t4, t5});
+}
+
 // The contact laws of a batch's first `pairs` pair entries, in SIMD lanes, over the padded
 // entries (the padding's dissipation is not counted); their loads go to batch.load.
 // Flattened: the laws vectorise only when inlined, which GCC's own heuristics did for some
@@ -108,10 +137,8 @@ template <class V>
   double* const out[9] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
                           batch.load[3].data(), batch.load[4].data(), batch.load[5].data(),
                           batch.load[6].data(), batch.load[7].data(), batch.load[8].data()};
-  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0, elastic = 0,
-         spring_in = 0, spring_out = 0;
-#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential, dissipated_rolling, \
-                               elastic, spring_in, spring_out)
+  double t0 = 0, t1 = 0, t2 = 0, t3 = 0, t4 = 0, t5 = 0;
+#pragma omp simd reduction(+ : t0, t1, t2, t3, t4, t5)
   for (int e = 0; e < end; ++e) {
     Dissipation d;
     Vec3 h{};
@@ -123,18 +150,10 @@ template <class V>
     if constexpr (pair_doubles<V>() == 9)
       out[6][e] = l.partner_torque.x, out[7][e] = l.partner_torque.y,
       out[8][e] = l.partner_torque.z;
-    dissipated_normal += e < pairs ? d.normal : 0.0;
-    dissipated_tangential += e < pairs ? d.tangential : 0.0;
-    if constexpr (V::kRolling) dissipated_rolling += e < pairs ? d.rolling : 0.0;
-    elastic += e < pairs ? d.elastic : 0.0;
-    if constexpr (history) {
-      spring_in += e < pairs ? d.spring_in : 0.0;
-      spring_out += e < pairs ? d.spring_out : 0.0;
-    }
+    add_lanes<V>(d, e < pairs, t0, t1, t2, t3, t4, t5);
   }
   if constexpr (history) batch.scatter(pairs, a.history.neighbour_out);
-  add_dissipation(total, {dissipated_normal, dissipated_tangential, dissipated_rolling, elastic,
-                          spring_in, spring_out});
+  add_sums(total.tally, t0, t1, t2, t3, t4, t5);
 }
 
 // The same for the first `walls` wall entries; their loads go to batch.load.
@@ -151,30 +170,20 @@ template <class V>
                       *const ny = batch.normal[1].data(), *const nz = batch.normal[2].data();
   double* const out[6] = {batch.load[0].data(), batch.load[1].data(), batch.load[2].data(),
                           batch.load[3].data(), batch.load[4].data(), batch.load[5].data()};
-  double dissipated_normal = 0, dissipated_tangential = 0, dissipated_rolling = 0, elastic = 0,
-         spring_in = 0, spring_out = 0;
-#pragma omp simd reduction(+ : dissipated_normal, dissipated_tangential, dissipated_rolling, \
-                               elastic, spring_in, spring_out)
+  double t0 = 0, t1 = 0, t2 = 0, t3 = 0, t4 = 0, t5 = 0;
+#pragma omp simd reduction(+ : t0, t1, t2, t3, t4, t5)
   for (int e = 0; e < end; ++e) {
     Dissipation d;
     Vec3 h{};
     if constexpr (history) h = {xi[0][e], xi[1][e], xi[2][e]};
     const Load l = wall_contact<V>(particle[e], gap[e], {nx[e], ny[e], nz[e]}, h, a, d);
     if constexpr (history) xi[0][e] = h.x, xi[1][e] = h.y, xi[2][e] = h.z;
-    dissipated_normal += e < walls ? d.normal : 0.0;
-    dissipated_tangential += e < walls ? d.tangential : 0.0;
-    if constexpr (V::kRolling) dissipated_rolling += e < walls ? d.rolling : 0.0;
-    elastic += e < walls ? d.elastic : 0.0;
-    if constexpr (history) {
-      spring_in += e < walls ? d.spring_in : 0.0;
-      spring_out += e < walls ? d.spring_out : 0.0;
-    }
+    add_lanes<V>(d, e < walls, t0, t1, t2, t3, t4, t5);
     out[0][e] = l.force.x, out[1][e] = l.force.y, out[2][e] = l.force.z;
     out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
   }
   if constexpr (history) batch.scatter(walls, a.history.wall_out);
-  add_dissipation(sum, {dissipated_normal, dissipated_tangential, dissipated_rolling, elastic,
-                        spring_in, spring_out});
+  add_sums(sum.tally, t0, t1, t2, t3, t4, t5);
 }
 
 // When a particle's slot tests find no contact, its nearest partner's gap bounds how long none

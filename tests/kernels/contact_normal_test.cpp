@@ -186,7 +186,7 @@ TEST_CASE("linear law: the normal tally is the dashpot's work over the discrete 
         std::vector<State> states{engine->particles()};
         double tally = 0;
         for (int n = 0; n < 40 + 2 * static_cast<int>(steps_per_contact); ++n) {
-          tally += step(*engine, dt).dissipated_normal;
+          tally += step(*engine, dt).tally.normal;
           states.push_back(engine->particles());
         }
         const double damping = contact.damping_factor * std::sqrt(mass_eff * kStiffness);

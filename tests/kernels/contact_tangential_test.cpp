@@ -109,7 +109,7 @@ TEST_CASE("oblique impact, small vt/vn: Mindlin history stays within the energy 
 // stuck spring conserves exactly, and the law's tally.
 struct TangentRun {
   double initial_energy = 0, final_energy = 0;  // J
-  Dissipation tally;                            // J, the law's dissipation in .tangential
+  Dissipation tally;                            // J, the law's dissipation in [kTangential]
   double damper_work = 0;    // J, sum of ct v . (v + v') / 2 dt over the trajectory
   double largest_force = 0;  // N
 };
@@ -215,8 +215,8 @@ TEST_CASE("directional Coulomb: a sliding sphere ends rolling, and stays so, at 
   double tally = 0, normal_tally = 0, largest_late_slip = 0, smallest_slip = v0;
   for (int n = 0; n < 3000; ++n) {
     const StepTotals& t = step(*engine, dt);
-    tally += t.dissipated_tangential;
-    normal_tally += t.dissipated_normal;
+    tally += t.tally.tangential;
+    normal_tally += t.tally.normal;
     const ParticleState p = engine->particles()[0];
     const double slip = p.velocity.x - p.spin.y * kRadius;
     smallest_slip = std::fmin(smallest_slip, slip);

@@ -84,8 +84,8 @@ ImpactRecord follow_impact(DemEngine& engine, double dt_s, Overlap overlap, int 
   double start = -1;
   for (int n = 1; n <= max_steps; ++n) {
     const StepTotals& totals = step(engine, dt_s);
-    r.dissipated_normal += totals.dissipated_normal;
-    r.dissipated_tangential += totals.dissipated_tangential;
+    r.dissipated_normal += totals.tally.normal;
+    r.dissipated_tangential += totals.tally.tangential;
     std::vector<ParticleState> now = engine.particles();
     const double current = overlap(now);
     const double crossing = (n - 1 + previous / (previous - current)) * dt_s;

@@ -251,9 +251,8 @@ ContainerKinematics shaken(int n, double dt) {
 void run_shaken(DemEngine& engine, double dt, int first, int last, std::vector<double>& log) {
   for (int n = first; n < last; ++n) {
     const StepTotals& t = engine.compute(shaken(n, dt), dt);
-    log.insert(log.end(),
-               {t.wall_force.x, t.wall_force.y, t.wall_force.z, t.dissipated_normal,
-                t.dissipated_tangential, t.dissipated_rolling, t.kinetic, double(t.flags)});
+    log.insert(log.end(), {t.wall_force.x, t.wall_force.y, t.wall_force.z, t.tally.normal,
+                           t.tally.tangential, t.tally.rolling, t.kinetic, double(t.flags)});
     engine.accept();
   }
 }
@@ -301,9 +300,9 @@ TEST_CASE("in-place steps equal double-buffered ones, each computed twice as tig
     guess.velocity = -2.0 * guess.velocity;
     buffered->compute(guess, c.dt);
     const StepTotals& t = buffered->compute(shaken(n, c.dt), c.dt);
-    buffered_log.insert(buffered_log.end(), {t.wall_force.x, t.wall_force.y, t.wall_force.z,
-                                             t.dissipated_normal, t.dissipated_tangential,
-                                             t.dissipated_rolling, t.kinetic, double(t.flags)});
+    buffered_log.insert(buffered_log.end(),
+                        {t.wall_force.x, t.wall_force.y, t.wall_force.z, t.tally.normal,
+                         t.tally.tangential, t.tally.rolling, t.kinetic, double(t.flags)});
     buffered->accept();
   }
   CHECK(bitwise_equal(buffered_log, in_place_log));

@@ -135,9 +135,8 @@ Deviation compare(const Trace& reference, const Trace& other, double container_s
   }
   double dissipated_max = 0, force_max = 0, speed_max = 0;
   for (const StepTotals& t : reference.totals) {
-    dissipated_max =
-        std::max({dissipated_max, std::fabs(t.dissipated_normal),
-                  std::fabs(t.dissipated_tangential), std::fabs(t.dissipated_rolling)});
+    dissipated_max = std::max({dissipated_max, std::fabs(t.tally.normal),
+                               std::fabs(t.tally.tangential), std::fabs(t.tally.rolling)});
     force_max = std::max(force_max, norm(t.wall_force));
     speed_max = std::max(speed_max, t.speed_sq);
   }
@@ -145,11 +144,9 @@ Deviation compare(const Trace& reference, const Trace& other, double container_s
     const StepTotals& a = reference.totals[n];
     const StepTotals& b = other.totals[n];
     keep_worst(d.kinetic, std::fabs(a.kinetic - b.kinetic) / a.kinetic);
-    keep_worst(d.dissipated, std::fabs(a.dissipated_normal - b.dissipated_normal) / dissipated_max);
-    keep_worst(d.dissipated,
-               std::fabs(a.dissipated_tangential - b.dissipated_tangential) / dissipated_max);
-    keep_worst(d.dissipated,
-               std::fabs(a.dissipated_rolling - b.dissipated_rolling) / dissipated_max);
+    keep_worst(d.dissipated, std::fabs(a.tally.normal - b.tally.normal) / dissipated_max);
+    keep_worst(d.dissipated, std::fabs(a.tally.tangential - b.tally.tangential) / dissipated_max);
+    keep_worst(d.dissipated, std::fabs(a.tally.rolling - b.tally.rolling) / dissipated_max);
     keep_worst(d.wall_force, norm(a.wall_force - b.wall_force) / force_max);
     keep_worst(d.speed, std::fabs(a.speed_sq - b.speed_sq) / speed_max);
     d.flags_equal = d.flags_equal && a.flags == b.flags;
@@ -257,7 +254,7 @@ TEST_CASE("the gpu engines follow the cpu engine for 1000 steps in every physics
         double dissipated = 0;
         for (const StepTotals& t : reference.totals) {
           REQUIRE(t.flags == 0);
-          dissipated += t.dissipated_normal;
+          dissipated += t.tally.normal;
         }
         CHECK(dissipated > 0);
         check_agree(compare(reference, trace, container_size(config)), steps);
@@ -283,9 +280,9 @@ TEST_CASE("two runs of a gpu engine are bitwise identical") {
     for (std::size_t n = 0; n < a.totals.size(); ++n) {
       CAPTURE(n);
       REQUIRE(a.totals[n].kinetic == b.totals[n].kinetic);
-      REQUIRE(a.totals[n].dissipated_normal == b.totals[n].dissipated_normal);
-      REQUIRE(a.totals[n].dissipated_tangential == b.totals[n].dissipated_tangential);
-      REQUIRE(a.totals[n].dissipated_rolling == b.totals[n].dissipated_rolling);
+      REQUIRE(a.totals[n].tally.normal == b.totals[n].tally.normal);
+      REQUIRE(a.totals[n].tally.tangential == b.totals[n].tally.tangential);
+      REQUIRE(a.totals[n].tally.rolling == b.totals[n].tally.rolling);
       REQUIRE(a.totals[n].wall_force.x == b.totals[n].wall_force.x);
     }
   }
@@ -299,7 +296,7 @@ TEST_CASE("a gpu engine's step computed twice before accept gives the same total
     const StepTotals first = engine->compute(container_at(300), kDt);
     const StepTotals again = engine->compute(container_at(300), kDt);
     CHECK(first.kinetic == again.kinetic);
-    CHECK(first.dissipated_tangential == again.dissipated_tangential);
+    CHECK(first.tally.tangential == again.tally.tangential);
     CHECK(first.wall_force.x == again.wall_force.x);
   }
 }

@@ -130,8 +130,8 @@ TEST_CASE("rolling resistance: a rolling ball stops in the analytic distance, ta
   double rolling = 0, other = 0;
   for (int n = 0; n < static_cast<int>(1.2 * stop_time / ball.dt); ++n) {
     const StepTotals& t = step(*ball.engine, ball.dt);
-    rolling += t.dissipated_rolling;
-    other += std::fabs(t.dissipated_normal) + std::fabs(t.dissipated_tangential);
+    rolling += t.tally.rolling;
+    other += std::fabs(t.tally.normal) + std::fabs(t.tally.tangential);
   }
   const ParticleState p = ball.engine->particles()[0];
   CHECK((p.position.x - x0) / distance == doctest::Approx(1).epsilon(1e-4));  // -3e-5
@@ -144,7 +144,7 @@ TEST_CASE("rolling resistance: spin about the normal is not resisted") {
   // Torsion is not rolling: a ball spinning about the floor's normal keeps its spin.
   RollingBall ball(0.05, {}, {0, 0, 30});
   double rolling = 0;
-  for (int n = 0; n < 2000; ++n) rolling += step(*ball.engine, ball.dt).dissipated_rolling;
+  for (int n = 0; n < 2000; ++n) rolling += step(*ball.engine, ball.dt).tally.rolling;
   CHECK(ball.engine->particles()[0].spin.z == 30);
   CHECK(rolling == 0);
 }

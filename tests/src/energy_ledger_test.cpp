@@ -70,9 +70,9 @@ double worst_imbalance(const Results& r, double reference) {
   for (double x : e.imbalance) worst = std::max(worst, std::fabs(x));
   const std::size_t n = e.time.size() - 1;
   MESSAGE("work in " << e.work_in[n] - e.work_in[0] << " J, dissipated: structure "
-                     << e.dissipated_structure[n] << ", normal " << e.dissipated_normal[n]
-                     << ", tangential " << e.dissipated_tangential[n] << ", rolling "
-                     << e.dissipated_rolling[n] << " J; largest |imbalance| " << worst / reference
+                     << e.dissipated_structure[n] << ", normal " << e.dissipated[kNormal][n]
+                     << ", tangential " << e.dissipated[kTangential][n] << ", rolling "
+                     << e.dissipated[kRolling][n] << " J; largest |imbalance| " << worst / reference
                      << " of " << reference << " J");
   return worst / reference;
 }
@@ -95,8 +95,8 @@ TEST_CASE(
                         "[excitation]\nkind = \"free_decay\"\ninitial_displacement = 0.004\n"
                         "duration = 0.4\n");
   const EnergySeries& e = *r.energy;
-  CHECK(e.dissipated_tangential.back() > 0);
-  CHECK(e.dissipated_rolling.back() > 0);
+  CHECK(e.dissipated[kTangential].back() > 0);
+  CHECK(e.dissipated[kRolling].back() > 0);
   CHECK(work_in(r) == 0);
   CHECK(worst_imbalance(r, 0.5 * 5000.0 * 0.004 * 0.004) <= 5e-3);
 }
@@ -178,8 +178,8 @@ settle = { min_periods = 30, max_periods = 30, batches = 5 }
 )");
   REQUIRE(r.frf.frequency.size() == 3);
   for (std::size_t i = 0; i < 3; ++i) {
-    const double tallied =
-        r.frf.dissipated_normal[i] + r.frf.dissipated_tangential[i] + r.frf.dissipated_rolling[i];
+    const double tallied = r.frf.dissipated[kNormal][i] + r.frf.dissipated[kTangential][i] +
+                           r.frf.dissipated[kRolling][i];
     CAPTURE(r.frf.frequency[i]);
     MESSAGE("input " << r.frf.dissipated_energy[i] << " J per period, tallied " << tallied);
     CHECK(r.frf.dissipated_energy[i] > 0);

@@ -16,6 +16,8 @@
 #include <string_view>
 #include <utility>
 
+#include "io/excitation.hpp"
+
 namespace pdsim {
 namespace {
 
@@ -635,10 +637,9 @@ FrequencyStart read_start(const Table& t, bool prescribed) {
 
 ExcitationSpec read_excitation(const Table& t) {
   ExcitationSpec e;
-  const ExcitationKind kinds[] = {ExcitationKind::stepped_sine, ExcitationKind::sine,
-                                  ExcitationKind::free_decay, ExcitationKind::prescribed};
-  e.kind = kinds[t.need_choice("kind", {"stepped_sine", "sine", "free_decay", "prescribed"},
-                               "in [excitation]")];
+  Names kinds;
+  for (const ExcitationTraits& k : kExcitations) kinds.push_back(k.name);
+  e.kind = kExcitations[t.need_choice("kind", kinds, "in [excitation]")].kind;
   const std::string positive_s = "a positive number (s)";
   if (e.kind == ExcitationKind::stepped_sine || e.kind == ExcitationKind::sine) {
     const bool stepped = e.kind == ExcitationKind::stepped_sine;

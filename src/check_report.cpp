@@ -53,7 +53,7 @@ std::string check_report(const Deck& deck, const Scene& scene) {
   }
   const ExcitationSpec& x = deck.excitation;
   const SettleSpec& settle = x.settle;
-  const bool judged = x.kind != ExcitationKind::free_decay && !fixed_duration(x);
+  const bool judged = runs_to_steady_state(x);
   if (judged)
     s << "frequencies: " << x.frequencies.size() << ", start = " << start_name(x.start)
       << "; steady when the 95 % interval is within " << 100 * settle.tolerance << " % ("

@@ -30,8 +30,7 @@ class Driver::Impl {
         quiet_(quiet),
         dump_path_(std::move(dump_path)) {
     const ExcitationSpec& x = first.excitation;
-    const bool swept =
-        x.kind == ExcitationKind::stepped_sine || x.kind == ExcitationKind::prescribed;
+    const bool swept = runs_points(x);
     fills_min_ = swept ? x.settle.realisations : 1;
     fills_max_ = swept && !fixed_duration(x) ? x.settle.max_realisations : fills_min_;
     frequencies_ = first.frequencies;
@@ -101,7 +100,7 @@ class Driver::Impl {
     checkpoint_ = checkpoint;
     stop_after_ = stop_after;
     const ExcitationSpec& x = excitation();
-    if (x.kind == ExcitationKind::free_decay || x.kind == ExcitationKind::sine) {
+    if (!runs_points(x)) {
       Progress progress(quiet_, 1, 1.0, false);
       FrequencyRun run(scene(0), [&](double f, double done) { progress.update(0, done, f); });
       try {
@@ -141,7 +140,7 @@ class Driver::Impl {
   }
   const ExcitationSpec& excitation() const { return scenes_[0]->excitation; }
   bool independent() const { return excitation().start == FrequencyStart::independent; }
-  bool prescribed() const { return excitation().kind == ExcitationKind::prescribed; }
+  bool prescribed() const { return traits(excitation().kind).moves_containers; }
 
   // Fill r's scene, built when it is first needed.
   const Scene& scene(std::size_t r) {
@@ -616,9 +615,7 @@ class Driver::Impl {
     t["coupling"] = schemes[static_cast<int>(scene.coupling.scheme)];
     t["dt_basis"] = scene.dt_basis;
     if (!scene.warning.empty()) t["warning"] = scene.warning;
-    const ExcitationKind kind = excitation().kind;
-    if (kind == ExcitationKind::stepped_sine || kind == ExcitationKind::prescribed)
-      t["start"] = start_name(excitation().start);
+    if (runs_points(excitation())) t["start"] = start_name(excitation().start);
     const BedReport& bed = reports_[0];
     t["bed"] = !bed.ran         ? "not settled (bed.settle = false, or no gravity or particles)"
                : bed_from_file_ ? "read from " + scene.bed.file

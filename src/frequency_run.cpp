@@ -238,7 +238,7 @@ Stationary FrequencyRun::judge() const {
 FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart start) {
   const ExcitationSpec& x = scene_.excitation;
   const SettleSpec& settle = x.settle;
-  const bool prescribed = x.kind == ExcitationKind::prescribed;
+  const bool prescribed = traits(x.kind).moves_containers;
   const int samples = configure(frequency, prescribed ? x.motion.amplitude : x.amplitude);
   const bool fixed = fixed_duration(x);
   const int max_periods = fixed ? std::max(1, static_cast<int>(std::lround(x.duration * frequency)))

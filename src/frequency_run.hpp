@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 
+#include "io/excitation.hpp"
 #include "io/results.hpp"
 #include "src/harmonics.hpp"
 #include "src/steady_state.hpp"
@@ -24,12 +25,6 @@ struct FrequencyPoint {
   MeanInterval energy_in;  // J per period
   std::vector<PeriodSummary> periods;  // every period run (dampers' harmonics left out)
 };
-
-// A fixed run (sine, or prescribed motion with a duration) takes the whole periods of its
-// duration and reports their means; the others run each frequency to a steady state.
-inline bool fixed_duration(const ExcitationSpec& x) {
-  return x.kind == ExcitationKind::sine || (x.kind == ExcitationKind::prescribed && x.duration > 0);
-}
 
 struct BedReport {
   bool ran = false, settled = false;

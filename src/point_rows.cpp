@@ -55,7 +55,7 @@ std::string ensemble_text(const Ensemble& e, bool prescribed) {
 
 void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fills, int sweep,
              const ExcitationSpec& x) {
-  const bool prescribed = x.kind == ExcitationKind::prescribed;
+  const bool prescribed = traits(x.kind).moves_containers;
   std::vector<FrequencyPoint> runs;
   for (const auto& [r, p] : fills) runs.push_back(p);
   const Ensemble e = judge_fills(runs, x);

@@ -36,7 +36,7 @@ struct Plan {
 Plan plan_run(const Deck& deck, const Scene& scene, int threads, int jobs,
               std::optional<Backend> backend) {
   const ExcitationSpec& x = deck.excitation;
-  const bool swept = x.kind == ExcitationKind::stepped_sine || x.kind == ExcitationKind::prescribed;
+  const bool swept = runs_points(x);
   const int realisations = swept ? x.settle.realisations : 1;
   // Side by side: the first fills, or with independent frequencies the frequencies (each task
   // runs its fills in turn, Driver::run_independent()).

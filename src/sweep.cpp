@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "io/excitation.hpp"
 #include "io/results.hpp"
 #include "src/format.hpp"
 #include "src/run.hpp"
@@ -114,7 +115,7 @@ pid_t launch(const Point& p, const SweepOptions& o, int threads) {
 // One row per point: its values, how it ended, and the headline results of its file.
 void write_summary(const Deck& deck, const std::vector<Point>& points, const std::string& path) {
   const bool frf = deck.excitation.kind == ExcitationKind::stepped_sine;
-  const bool prescribed = deck.excitation.kind == ExcitationKind::prescribed;
+  const bool prescribed = traits(deck.excitation.kind).moves_containers;
   std::ofstream out(path + ".partial");
   out << "point";
   for (const auto& key : deck.sweep.keys) out << "," << csv(key);

@@ -1,0 +1,54 @@
+// What each excitation kind is, declared once, in ExcitationKind's order: its deck name and how
+// a run treats it. The code asks these questions of a kind, not which kind it is. Adding a
+// kind: an entry here, its keys in read_excitation() (io/deck.cpp), its drive
+// (src/coupled_system.cpp) and, for a new way to run a point, src/frequency_run.cpp.
+#pragma once
+
+#include "io/specs.hpp"
+
+namespace pdsim {
+
+struct ExcitationTraits {
+  ExcitationKind kind;
+  const char* name;  // excitation.kind in a deck
+  // Its frequencies run as points, each by several fills side by side (rows in /frf or
+  // /prescribed, the ensemble of fills, a checkpoint per point); else one run of one fill.
+  bool points;
+  bool moves_containers;  // the containers' motion is prescribed (no structure is driven)
+  // A point's periods: kFixed, those of excitation.duration; kSteady, until the steady state
+  // (kFixedIfDuration: kFixed when a duration is given).
+  enum Periods { kNone, kFixed, kSteady, kFixedIfDuration } periods;
+};
+
+inline constexpr ExcitationTraits kExcitations[] = {
+    {ExcitationKind::stepped_sine, "stepped_sine", true, false, ExcitationTraits::kSteady},
+    {ExcitationKind::sine, "sine", false, false, ExcitationTraits::kFixed},
+    {ExcitationKind::free_decay, "free_decay", false, false, ExcitationTraits::kNone},
+    {ExcitationKind::prescribed, "prescribed", true, true, ExcitationTraits::kFixedIfDuration},
+};
+
+inline const ExcitationTraits& traits(ExcitationKind kind) {
+  return kExcitations[static_cast<int>(kind)];
+}
+
+// Whether x's frequencies run as points of several fills (stepped_sine, prescribed).
+inline bool runs_points(const ExcitationSpec& x) {
+  return traits(x.kind).points;
+}
+
+// A fixed run (sine, or prescribed motion with a duration) takes the whole periods of its
+// duration and reports their means.
+inline bool fixed_duration(const ExcitationSpec& x) {
+  const auto p = traits(x.kind).periods;
+  return p == ExcitationTraits::kFixed ||
+         (p == ExcitationTraits::kFixedIfDuration && x.duration > 0);
+}
+
+// Whether x's points run each frequency to a steady state (the detector judges them).
+inline bool runs_to_steady_state(const ExcitationSpec& x) {
+  const auto p = traits(x.kind).periods;
+  return p == ExcitationTraits::kSteady ||
+         (p == ExcitationTraits::kFixedIfDuration && x.duration <= 0);
+}
+
+}  // namespace pdsim

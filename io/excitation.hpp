@@ -4,6 +4,8 @@
 // (src/coupled_system.cpp) and, for a new way to run a point, src/frequency_run.cpp.
 #pragma once
 
+#include <vector>
+
 #include "io/specs.hpp"
 
 namespace pdsim {
@@ -49,6 +51,20 @@ inline bool runs_to_steady_state(const ExcitationSpec& x) {
   const auto p = traits(x.kind).periods;
   return p == ExcitationTraits::kSteady ||
          (p == ExcitationTraits::kFixedIfDuration && x.duration <= 0);
+}
+
+// The frequencies x runs, Hz, in order: a sine's one frequency, else the list (prescribed
+// motion without one: the reader puts the motion's frequency there).
+inline std::vector<double> run_frequencies(const ExcitationSpec& x) {
+  return x.kind == ExcitationKind::sine ? std::vector<double>{x.frequency} : x.frequencies;
+}
+
+// The deck key those frequencies came from, for messages; `list_given`: the deck has
+// excitation.frequencies.
+inline const char* frequency_key(const ExcitationSpec& x, bool list_given) {
+  return x.kind == ExcitationKind::sine ? "excitation.frequency"
+         : list_given                   ? "excitation.frequencies"
+                                        : "excitation.motion.frequency";
 }
 
 }  // namespace pdsim

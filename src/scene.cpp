@@ -1,6 +1,7 @@
 #include "src/scene.hpp"
 
 #include "io/deck.hpp"
+#include "io/excitation.hpp"
 #include "src/format.hpp"
 #include "structure/structure.hpp"
 
@@ -177,11 +178,8 @@ Locate locate(const Deck& deck) {
 // matrices that stay finite at every frequency of the deck.
 void check_feasible(const Deck& deck, const Scene& s) {
   const std::vector<double>& frequencies = s.frequencies;
-  const ExcitationSpec& x = deck.excitation;
-  const std::string f_key = x.kind == ExcitationKind::sine ? "excitation.frequency"
-                            : deck.positions.count("excitation.frequencies")
-                                ? "excitation.frequencies"
-                                : "excitation.motion.frequency";
+  const std::string f_key =
+      frequency_key(deck.excitation, deck.positions.count("excitation.frequencies") > 0);
   const std::string dt_key = deck.solver.dt > 0 ? "solver.dt" : f_key;
   const std::string step_key = deck.solver.dt > 0 ? "solver.dt" : "solver.dt_safety";
   if (!(s.dt >= kMinDt))
@@ -336,11 +334,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     }
   }
 
-  const ExcitationSpec& x = deck.excitation;
-  std::vector<double>& f = s.frequencies;
-  f = x.frequencies;
-  if (x.kind == ExcitationKind::sine) f = {x.frequency};
-  if (x.kind == ExcitationKind::prescribed && f.empty()) f = {x.motion.frequency};
+  s.frequencies = run_frequencies(deck.excitation);
   if (deck.structure.kind != StructureKind::none) {
     s.structure = build_structure(deck);
     try {

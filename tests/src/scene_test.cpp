@@ -93,6 +93,30 @@ TEST_CASE("what a run would overflow on is refused by check, at its key") {
             .find("expected at most 3.125e+10 Hz") != std::string::npos);
 }
 
+TEST_CASE("a frequency too fast to step is refused at the key it came from, for each kind") {
+  auto error = [](const std::string& file, const std::string& from, const std::string& to) {
+    std::string text = load_deck(std::string(PDSIM_TEST_DIR) + "/decks/" + file).text;
+    REQUIRE(text.find(from) != std::string::npos);
+    text.replace(text.find(from), from.size(), to);
+    try {
+      build_scene(parse_deck(text, file));
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  const std::string too_fast = "a frequency of 1e+12 Hz needs steps shorter than 1e-12 s";
+  CHECK(error("tiny_prescribed.toml", "frequency = 20.0 }", "frequency = 1e12 }")
+            .find("'excitation.motion.frequency': " + too_fast) != std::string::npos);
+  CHECK(error("tiny_stepped_sine.toml",
+              "kind = \"stepped_sine\"\namplitude = 1.0\nfrequencies = [15.0, 16.0]\n"
+              "settle = { min_periods = 3, max_periods = 4, batches = 2 }",
+              "kind = \"sine\"\namplitude = 1.0\nfrequency = 1e12\nduration = 0.2")
+            .find("'excitation.frequency': " + too_fast) != std::string::npos);
+  CHECK(error("tiny_stepped_sine.toml", "[15.0, 16.0]", "[15.0, 1e12]")
+            .find("'excitation.frequencies': " + too_fast) != std::string::npos);
+}
+
 TEST_CASE("a beam whose matrices have no modes is refused at [structure], not by a failed solver") {
   // Found by the deck fuzz test: density = 1e-300 made the beam's eigenproblem fail, a
   // SimulationError out of check instead of an InputError at the deck's line.

@@ -189,10 +189,10 @@ settle = { min_periods = 30, max_periods = 30, batches = 5 }
 
 // Hard cases (issue 35): the ledger stays closed and the response bounded at the extremes of
 // restitution, and with this scene's linear contacts 100x stiffer at the auto dt (not yet the
-// issue's 100x steel). The bound: started from rest, a
-// damped SDOF driven at F sin(w t) below resonance stays within twice its steady amplitude
-// F / |k - m w^2 + i c w|; the particles carried as a rigid mass are the largest m (the closest
-// to resonance) they can add, and their losses only lower it.
+// issue's 100x steel). The bound: started from rest, a damped SDOF driven at F sin(w t) below
+// resonance stays within twice its steady amplitude F / |k - m w^2 + i c w|; the particles
+// carried as a rigid mass are the largest m (the closest to resonance) they can add, and their
+// losses only lower it.
 TEST_CASE("energy ledger: near-elastic, nearly plastic and 100x stiffer contacts close, bounded") {
   const double pi = std::acos(-1.0), w = 2 * pi * 15.0, k = 5000.0;
   const double m = 0.5 + 24 * 7800.0 * 4.0 / 3.0 * pi * std::pow(0.002, 3);

@@ -35,7 +35,7 @@ enum Tally : int {
 // index (tally<T>), not an array taken by a variable one: in the CPU engine's SIMD contact
 // loops GCC keeps a struct of scalars in registers, and an array, a switch or a reference
 // returned to a member in memory, which stopped the loops vectorising.
-struct Dissipation {
+struct Dissipation {  // members in Tally order
   double normal = 0, tangential = 0, rolling = 0, elastic = 0, spring_in = 0, spring_out = 0;
 };
 static_assert(sizeof(Dissipation) == kTallyCount * sizeof(double), "a member for every Tally");

@@ -115,10 +115,6 @@ inline void add_lanes(const Dissipation& d, bool counted, double& t0, double& t1
   add_lane<V, 2>(t2, d, counted), add_lane<V, 3>(t3, d, counted);
   add_lane<V, 4>(t4, d, counted), add_lane<V, 5>(t5, d, counted);
 }
-inline void add_sums(Dissipation& total, double t0, double t1, double t2, double t3, double t4,
-                     double t5) {
-  add_tallies(total, {t0, t1, t2, t3, t4, t5});
-}
 
 // The contact laws of a batch's first `pairs` pair entries, in SIMD lanes, over the padded
 // entries (the padding's dissipation is not counted); their loads go to batch.load.
@@ -153,7 +149,7 @@ template <class V>
     add_lanes<V>(d, e < pairs, t0, t1, t2, t3, t4, t5);
   }
   if constexpr (history) batch.scatter(pairs, a.history.neighbour_out);
-  add_sums(total.tally, t0, t1, t2, t3, t4, t5);
+  add_tallies(total.tally, {t0, t1, t2, t3, t4, t5});  // members in Tally order
 }
 
 // The same for the first `walls` wall entries; their loads go to batch.load.
@@ -183,7 +179,7 @@ template <class V>
     out[3][e] = l.torque.x, out[4][e] = l.torque.y, out[5][e] = l.torque.z;
   }
   if constexpr (history) batch.scatter(walls, a.history.wall_out);
-  add_sums(sum.tally, t0, t1, t2, t3, t4, t5);
+  add_tallies(sum.tally, {t0, t1, t2, t3, t4, t5});
 }
 
 // When a particle's slot tests find no contact, its nearest partner's gap bounds how long none

@@ -191,8 +191,9 @@ settle = { min_periods = 30, max_periods = 30, batches = 5 }
 // restitution, with this scene's linear contacts 100x stiffer at the auto dt (not yet the
 // issue's 100x steel), and with diameters 1:4. The bound: started from rest, a damped SDOF
 // driven at F sin(w t) below resonance stays within twice its steady amplitude
-// F / |k - m w^2 + i c w|; the particles carried as a rigid mass are the largest m (the closest
-// to resonance) they can add, and their losses only lower it.
+// F / |k - m w^2 + i c w| (2.001 times for this damping and frequency ratio). It is taken with
+// the particles carried as a rigid mass, the largest m (the closest to resonance) they can add;
+// a damper, whose impacts also take energy out, is expected under it, not proven to be.
 TEST_CASE(
     "energy ledger: near-elastic, nearly plastic, 100x stiffer and 1:4 sizes close, bounded") {
   const double pi = std::acos(-1.0), w = 2 * pi * 15.0, k = 5000.0;
@@ -216,7 +217,7 @@ TEST_CASE(
     text.replace(text.find(hard.from), hard.from.size(), hard.to);
     const Results r = run(kStructure + text + sine("force", 1.0));
     CHECK(worst_imbalance(r, work_in(r)) <= 5e-3);
-    const double bound = 2 * 1.0 / std::hypot(k - (0.5 + hard.particles) * w * w, c * w);
+    const double bound = 2.001 * 1.0 / std::hypot(k - (0.5 + hard.particles) * w * w, c * w);
     double peak = 0;
     for (double x : r.timeseries.displacement) peak = std::max(peak, std::fabs(x));
     MESSAGE("peak displacement " << peak << " m, bound " << bound << " m");

@@ -23,8 +23,7 @@
 #include <utility>
 #include <vector>
 
-#include "kernels/engine.hpp"
-#include "kernels/variant_dispatch.hpp"
+#include "kernels/engine_core.hpp"
 
 namespace pdsim {
 namespace gpu_engine {
@@ -111,24 +110,31 @@ struct BuildReverse {
 
 // ---- the engine ---------------------------------------------------------------------------------
 
+// The Exec is a base of its own, constructed before the core's arrays and destroyed after them.
 template <class Exec>
-class GpuEngine final : public DemEngine {
+struct WithExec {
+  Exec exec_;
+};
+template <class Exec>
+struct ExecArray {
+  template <class T>
+  using type = typename Exec::template Array<T>;
+};
+
+template <class Exec>
+class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec>::template type> {
+  using Core = EngineCore<ExecArray<Exec>::template type>;
   template <class T>
   using Array = typename Exec::template Array<T>;
-
-  struct State {
-    Array<double> x, y, z, vx, vy, vz, wx, wy, wz;
-    Array<double>* all[9] = {&x, &y, &z, &vx, &vy, &vz, &wx, &wy, &wz};
-    ParticleArrays view() const {
-      return {x.data(),  y.data(),  z.data(),  vx.data(), vy.data(),
-              vz.data(), wx.data(), wy.data(), wz.data()};
-    }
-  };
-  struct History {
-    Array<double> neighbour, wall;
-    Array<std::uint64_t> neighbour_mask;
-    Array<std::uint8_t> wall_mask;
-  };
+  using Core::config_, Core::variant_, Core::sizes_, Core::scene_args_, Core::count_,
+      Core::max_neighbours_, Core::dt_, Core::travel_, Core::grid_, Core::needs_rebuild_,
+      Core::totals_, Core::state_, Core::history_, Core::radius_, Core::inv_mass_,
+      Core::inv_inertia_, Core::id_, Core::neighbours_, Core::partner_id_, Core::neighbour_count_,
+      Core::reverse_, Core::reverse_count_, Core::slot_start_, Core::reverse_start_,
+      Core::incoming_;
+  using typename Core::History;
+  using typename Core::State;
+  using WithExec<Exec>::exec_;
 
  public:
   // What is compiled per kernel variant: its two passes and block sums (Exec::step<V>).
@@ -149,10 +155,7 @@ class GpuEngine final : public DemEngine {
     }
   };
 
-  GpuEngine(const EngineConfig& c, Step step)
-      : config_(c), sizes_(engine_sizes(c)), step_(step.run), variant_(std::move(step.variant)) {
-    count_ = sizes_.count;
-    max_neighbours_ = sizes_.max_neighbours;
+  GpuEngine(const EngineConfig& c, Step step) : Core(c, step.variant), step_(step.run) {
     const std::size_t n = static_cast<std::size_t>(count_);
     for (auto& s : state_)
       for (auto* a : s.all) a->resize(n);
@@ -166,8 +169,7 @@ class GpuEngine final : public DemEngine {
     overflow_.resize(1);
     overflow_.fill_bytes(0, exec_);
 
-    radius_host_ = c.radius;
-    upload_particle_constants();
+    upload_particle_constants(c.radius);
     std::vector<std::int32_t> id(n);
     std::iota(id.begin(), id.end(), 0);
     id_.upload(id, exec_, "id");
@@ -179,7 +181,10 @@ class GpuEngine final : public DemEngine {
     if (needs_rebuild_) rebuild(container);
     dt_ = dt;
     const int blocks = blocks_for(count_);
-    step_(args(container, dt), block_totals_.data(), blocks, exec_);
+    const int next = current_ ^ 1;
+    step_(this->step_args(container, dt, state_[current_], state_[next], history_[current_],
+                          history_[next], pair_load_.data()),
+          block_totals_.data(), blocks, exec_);
     totals_ = exec_.sum_blocks(block_totals_.data(), blocks, overflow_.data());
     if (totals_.flags & kNeighbourOverflow)
       throw SimulationError(neighbour_overflow_message(max_neighbours_));
@@ -188,11 +193,9 @@ class GpuEngine final : public DemEngine {
 
   void accept() override {
     current_ ^= 1;
-    if (lists_expired(travel_, totals_.speed_sq, dt_, sizes_.skin)) needs_rebuild_ = true;
+    this->track_drift(totals_);
   }
 
-  int count() const override { return count_; }
-  std::string variant() const override { return variant_.name; }
   std::string backend() const override { return exec_.name(); }
   int threads() const override {
     return 1;  // host threads; the device work is one thread per particle
@@ -224,64 +227,54 @@ class GpuEngine final : public DemEngine {
       for (int k = 0; k < 9; ++k) c[static_cast<std::size_t>(k)][i] = values[k];
     }
     State& s = state_[current_];
-    for (int k = 0; k < 9; ++k)
-      s.all[k]->upload(c[static_cast<std::size_t>(k)], exec_, kStateNames[k]);
+    for (int k = 0; k < 9; ++k) s.all[k]->upload(c[static_cast<std::size_t>(k)], exec_, "state");
     clear_history();
     exec_.synchronize();  // the uploads read host memory that is about to go away
     needs_rebuild_ = true;
   }
 
   StateArrays save() const override {
-    StateArrays out;
+    EngineCheckpoint c;
     const State& s = state_[current_];
-    for (int k = 0; k < 9; ++k) out[kStateNames[k]] = s.all[k]->download(exec_);
-    out["id"] = id_.download(exec_);
-    out["radius"] = radius_.download(exec_);
+    const auto columns = state_columns(c);
+    for (int k = 0; k < 9; ++k) *columns[k] = s.all[k]->download(exec_);
+    c.id = id_.download(exec_);
+    c.radius = radius_.download(exec_);
     const History& h = history_[current_];
-    std::vector<std::uint64_t> neighbour_mask = h.neighbour_mask.download(exec_);
-    std::vector<std::uint8_t> wall_mask = h.wall_mask.download(exec_);
-    out["history"] = live_history(h.neighbour.download(exec_), neighbour_mask, max_neighbours_);
-    out["wall_history"] = live_history(h.wall.download(exec_), wall_mask, kWallSlots);
-    out["wall_mask"] = std::move(wall_mask);
-    out["neighbour_mask"] = std::move(neighbour_mask);
-    out["neighbours"] = neighbours_.download(exec_);
-    out["partner_id"] = partner_id_.download(exec_);
-    out["neighbour_count"] = neighbour_count_.download(exec_);
-    out["reverse"] = flat_reverse(reverse_.download(exec_), max_neighbours_);
-    out["reverse_count"] = reverse_count_.download(exec_);
-    put_grid(out, {grid_, needs_rebuild_, max_neighbours_, travel_});
-    return out;
+    c.history = h.neighbour.download(exec_);
+    c.wall_history = h.wall.download(exec_);
+    c.wall_mask = h.wall_mask.download(exec_);
+    c.neighbour_mask = h.neighbour_mask.download(exec_);
+    c.neighbours = neighbours_.download(exec_);
+    c.partner_id = partner_id_.download(exec_);
+    c.neighbour_count = neighbour_count_.download(exec_);
+    c.reverse = reverse_.download(exec_);
+    c.reverse_count = reverse_count_.download(exec_);
+    this->save_grid(c);
+    return to_arrays(std::move(c));
   }
 
   void restore(const StateArrays& in) override {
-    const GridState g = check_checkpoint(in, count_, variant_.history);
-    max_neighbours_ = g.max_neighbours;
+    const EngineCheckpoint c = from_arrays(in, count_, variant_.history);
+    this->restore_grid(c);
     size_neighbour_arrays();
     State& s = state_[current_];
-    for (int k = 0; k < 9; ++k)
-      s.all[k]->upload(state_values<double>(in, kStateNames[k]), exec_, kStateNames[k]);
-    id_.upload(state_values<std::int32_t>(in, "id"), exec_, "id");
-    radius_host_ = state_values<double>(in, "radius");
-    upload_particle_constants();
+    const auto columns = state_columns(c);
+    for (int k = 0; k < 9; ++k) s.all[k]->upload(*columns[k], exec_, "state");
+    id_.upload(c.id, exec_, "id");
+    upload_particle_constants(c.radius);
     clear_history();
     History& h = history_[current_];
-    h.neighbour.upload(state_values<double>(in, "history"), exec_, "history");
-    h.wall.upload(state_values<double>(in, "wall_history"), exec_, "wall_history");
-    h.wall_mask.upload(state_values<std::uint8_t>(in, "wall_mask"), exec_, "wall_mask");
-    h.neighbour_mask.upload(state_values<std::uint64_t>(in, "neighbour_mask"), exec_,
-                            "neighbour_mask");
-    neighbours_.upload(state_values<std::int32_t>(in, "neighbours"), exec_, "neighbours");
-    partner_id_.upload(state_values<std::int32_t>(in, "partner_id"), exec_, "partner_id");
-    neighbour_count_.upload(state_values<std::int32_t>(in, "neighbour_count"), exec_,
-                            "neighbour_count");
-    const std::vector<std::int32_t> reverse =
-        packed_reverse(state_values<std::int32_t>(in, "reverse"), max_neighbours_);
-    reverse_.upload(reverse, exec_, "reverse");
-    reverse_count_.upload(state_values<std::int32_t>(in, "reverse_count"), exec_, "reverse_count");
-    needs_rebuild_ = g.needs_rebuild;
+    h.neighbour.upload(c.history, exec_, "history");
+    h.wall.upload(c.wall_history, exec_, "wall_history");
+    h.wall_mask.upload(c.wall_mask, exec_, "wall_mask");
+    h.neighbour_mask.upload(c.neighbour_mask, exec_, "neighbour_mask");
+    neighbours_.upload(c.neighbours, exec_, "neighbours");
+    partner_id_.upload(c.partner_id, exec_, "partner_id");
+    neighbour_count_.upload(c.neighbour_count, exec_, "neighbour_count");
+    reverse_.upload(c.reverse, exec_, "reverse");
+    reverse_count_.upload(c.reverse_count, exec_, "reverse_count");
     overflow_.fill_bytes(0, exec_);
-    travel_ = g.travel;
-    grid_ = g.grid;
     exec_.synchronize();  // the uploads read host memory that is about to go away
   }
 
@@ -295,9 +288,9 @@ class GpuEngine final : public DemEngine {
     for (const auto* a :
          {&radius_, &inv_mass_, &inv_inertia_, &radius_next_, &inv_mass_next_, &inv_inertia_next_})
       bytes += a->bytes();
-    for (const auto* a :
-         {&id_, &id_next_, &order_in_, &order_, &neighbours_, &partner_id_, &partner_id_old_,
-          &neighbour_count_, &neighbour_count_old_, &reverse_, &reverse_count_, &slot_start_})
+    for (const auto* a : {&id_, &id_next_, &order_in_, &order_, &neighbours_, &partner_id_,
+                          &partner_id_old_, &neighbour_count_, &neighbour_count_old_, &reverse_,
+                          &reverse_count_, &slot_start_, &reverse_start_})
       bytes += a->bytes();
     bytes += incoming_.bytes() + pair_load_.bytes();
     bytes += cell_key_.bytes() + cell_key_sorted_.bytes();
@@ -305,18 +298,11 @@ class GpuEngine final : public DemEngine {
   }
 
  private:
-  // Mass and inertia of solid spheres, computed as in the CPU engine.
-  void upload_particle_constants() {
-    const std::size_t n = radius_host_.size();
-    std::vector<double> inv_mass(n), inv_inertia(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const SphereMass m = sphere_mass(radius_host_[i], config_.density);
-      inv_mass[i] = m.inv_mass;
-      inv_inertia[i] = m.inv_inertia;
-    }
-    radius_.upload(radius_host_, exec_, "radius");
-    inv_mass_.upload(inv_mass, exec_, "inv_mass");
-    inv_inertia_.upload(inv_inertia, exec_, "inv_inertia");
+  void upload_particle_constants(const std::vector<double>& radius) {
+    const auto m = this->mass_properties(radius);
+    radius_.upload(radius, exec_, "radius");
+    inv_mass_.upload(m.inv_mass, exec_, "inv_mass");
+    inv_inertia_.upload(m.inv_inertia, exec_, "inv_inertia");
     exec_.synchronize();
   }
 
@@ -338,8 +324,10 @@ class GpuEngine final : public DemEngine {
     // Fixed stride: particle i's lists start at i * max_neighbours (forward and reverse alike).
     std::vector<std::int32_t> start(n + 1);
     for (std::size_t i = 0; i <= n; ++i) start[i] = static_cast<std::int32_t>(i) * max_neighbours_;
-    slot_start_.resize(n + 1);
-    slot_start_.upload(start, exec_, "slot_start");
+    for (auto* a : {&slot_start_, &reverse_start_}) {
+      a->resize(n + 1);
+      a->upload(start, exec_, "slot_start");
+    }
     exec_.synchronize();  // `start` is host memory about to go away
   }
 
@@ -359,36 +347,11 @@ class GpuEngine final : public DemEngine {
     incoming_.fill_bytes(0, exec_);
   }
 
-  ParticleStepArgs args(const ContainerKinematics& container, double dt) const {
-    const History& hin = history_[current_];
-    const History& hout = history_[current_ ^ 1];
-    ParticleStepArgs a = scene_args_;
-    a.dt = dt;
-    a.container = container;
-    a.in = state_[current_].view();
-    a.out = state_[current_ ^ 1].view();
-    a.radius = radius_.data();
-    a.inv_mass = inv_mass_.data();
-    a.inv_inertia = inv_inertia_.data();
-    a.neighbours = neighbours_.data();
-    a.neighbour_count = neighbour_count_.data();
-    a.reverse = reverse_.data();
-    a.reverse_count = reverse_count_.data();
-    a.slot_start = slot_start_.data();
-    a.reverse_start = slot_start_.data();
-    a.history = history_view(hin, hout);
-    a.incoming = incoming_.data();
-    a.pair_load = pair_load_.data();
-    return a;
-  }
-
   // Sorts the particles by grid cell (stable sort of (cell, index): the same order as the CPU's
   // counting sort) and rebuilds the neighbour lists, carrying the history. The reordered state
   // goes to the back buffers, which then become current.
   void rebuild(const ContainerKinematics& container) {
-    grid_ = grid_around(container.position,
-                        world_half_size(config_.geometry.half_size, config_.orientation),
-                        2 * sizes_.r_max + sizes_.skin);
+    grid_ = this->rebuild_grid(container);
     const int cells = grid_.nx * grid_.ny * grid_.nz;
     cell_start_.resize(static_cast<std::size_t>(cells));
     cell_end_.resize(static_cast<std::size_t>(cells));
@@ -441,36 +404,9 @@ class GpuEngine final : public DemEngine {
 
     partner_id_.swap(partner_id_old_);
     neighbour_count_.swap(neighbour_count_old_);
-    NeighbourBuildArgs b{};
-    b.count = count_;
-    b.grid = grid_;
-    b.x = t.x.data();
-    b.y = t.y.data();
-    b.z = t.z.data();
-    b.radius = variant_.polydisperse ? radius_.data() : nullptr;
-    b.mono_radius = scene_args_.mono_radius;
-    b.skin = sizes_.skin;
-    b.cell_start = cell_start_.data();
-    b.cell_end = cell_end_.data();
-    b.id = id_.data();
-    if (variant_.history) {
-      b.old_index = order_.data();
-      b.old_slot_start = slot_start_.data();
-      b.old_partner_id = partner_id_old_.data();
-      b.old_neighbour_count = neighbour_count_old_.data();
-      b.old_mask = hin.neighbour_mask.data();
-      b.old_history = hin.neighbour.data();
-      b.new_mask = hnew.neighbour_mask.data();
-      b.new_history = hnew.neighbour.data();
-    }
-    b.max_neighbours = max_neighbours_;
-    b.slot_start = slot_start_.data();
-    b.reverse_start = slot_start_.data();
-    b.neighbours = neighbours_.data();
-    b.neighbour_count = neighbour_count_.data();
-    b.partner_id = partner_id_.data();
-    b.reverse = reverse_.data();
-    b.reverse_count = reverse_count_.data();
+    NeighbourBuildArgs b = this->build_args(t, cell_start_.data(), cell_end_.data());
+    this->carry_history(b, order_.data(), slot_start_.data(), partner_id_old_.data(),
+                        neighbour_count_old_.data(), hin, hnew);
     overflow_.fill_bytes(0, exec_);
     exec_.each(count_, BuildNeighbours{b, overflow_.data()}, "neighbour lists");
     exec_.each(count_, BuildReverse{b, overflow_.data()}, "reverse lists");
@@ -480,31 +416,15 @@ class GpuEngine final : public DemEngine {
     needs_rebuild_ = false;
   }
 
-  Exec exec_;  // declared before the arrays, so destroyed after them
-  EngineConfig config_;
-  EngineSizes sizes_;
-  ParticleStepArgs scene_args_ = scene_step_args(config_);
   StepFn step_ = nullptr;
-  VariantInfo variant_;
-  int count_ = 0, max_neighbours_ = 1, current_ = 0;
-  double dt_ = 0, travel_ = 0;  // last step size; drift bound since the last build (m)
-  std::vector<double> radius_host_;
-  State state_[2];
-  History history_[2];
-  Array<double> radius_, inv_mass_, inv_inertia_;
+  int current_ = 0;
   Array<double> radius_next_, inv_mass_next_, inv_inertia_next_;  // rebuild scratch
-  Array<std::int32_t> id_, id_next_, neighbours_, partner_id_, partner_id_old_;
-  Array<std::int32_t> neighbour_count_, neighbour_count_old_, reverse_, reverse_count_;
-  Array<std::int32_t> slot_start_;
-  Array<std::uint32_t> incoming_;
+  Array<std::int32_t> id_next_, partner_id_old_, neighbour_count_old_;
   Array<double> pair_load_;
   Array<std::uint32_t> cell_key_, cell_key_sorted_;
   Array<std::int32_t> order_in_, order_, cell_start_, cell_end_;
   Array<int> overflow_;
   Array<ParticleContribution> block_totals_;
-  Grid grid_{};
-  bool needs_rebuild_ = true;
-  StepTotals totals_;
 };
 
 }  // namespace gpu_engine

@@ -9,28 +9,14 @@
 #include <numeric>
 
 #include "kernels/cpu/engine_cpu.hpp"
+#include "kernels/engine_core.hpp"
 
 namespace pdsim {
 namespace cpu_engine {
 namespace {
 
-struct StateBuffer {
-  std::vector<double> x, y, z, vx, vy, vz, wx, wy, wz;
-  std::vector<double>* all[9] = {&x, &y, &z, &vx, &vy, &vz, &wx, &wy, &wz};
-  void resize(std::size_t n) {
-    for (auto* a : all) a->assign(n, 0.0);
-  }
-  ParticleArrays view() {
-    return {x.data(),  y.data(),  z.data(),  vx.data(), vy.data(),
-            vz.data(), wx.data(), wy.data(), wz.data()};
-  }
-};
-
-struct HistoryBuffer {
-  std::vector<double> neighbour, wall;
-  std::vector<std::uint64_t> neighbour_mask;
-  std::vector<std::uint8_t> wall_mask;
-};
+template <class T>
+using CpuArray = std::vector<T>;
 
 // a[i] = a[order[i]] (stride entries per particle) through `scratch`, which swaps with a. A
 // scratch that lives on (the other history buffer) spares the page faults of a fresh large
@@ -99,21 +85,18 @@ class BlockShares {
   std::unique_ptr<Share[]> shares_;
 };
 
-class CpuEngine final : public DemEngine {
+class CpuEngine final : public EngineCore<CpuArray> {
  public:
   CpuEngine(const EngineConfig& c, CpuStep step)
-      : config_(c), step_(std::move(step)), sizes_(engine_sizes(c)) {
-    count_ = sizes_.count;
+      : EngineCore(c, step.variant), step_(std::move(step)) {
     threads_ = c.threads > 0 ? c.threads : omp_get_max_threads();
     pair_shares_ = BlockShares(threads_);
     particle_shares_ = BlockShares(threads_);
-    max_neighbours_ = sizes_.max_neighbours;
     const std::size_t n = static_cast<std::size_t>(count_);
-    state_[0].resize(n);
-    if (c.recompute) state_[1].resize(n);  // the back buffer
+    for (auto* a : state_[0].all) a->assign(n, 0.0);
+    if (c.recompute)  // the back buffer
+      for (auto* a : state_[1].all) a->assign(n, 0.0);
     radius_ = c.radius;
-    inv_mass_.resize(n);
-    inv_inertia_.resize(n);
     set_mass_properties();
     id_.resize(n);
     std::iota(id_.begin(), id_.end(), 0);
@@ -172,15 +155,9 @@ class CpuEngine final : public DemEngine {
 
   void accept() override {
     if (config_.recompute) current_ ^= 1, history_current_ ^= 1;  // the back buffers
-    if (lists_expired(travel_, totals_.speed_sq, dt_, sizes_.skin)) needs_rebuild_ = true;
+    track_drift(totals_);
   }
 
-  int count() const override {
-    return count_;
-  }
-  std::string variant() const override {
-    return step_.variant.name;
-  }
   std::string backend() const override {
     return "cpu (" + std::to_string(threads_) + " thread" + (threads_ > 1 ? "s)" : ")");
   }
@@ -189,7 +166,7 @@ class CpuEngine final : public DemEngine {
   }
 
   std::vector<ParticleState> particles() const override {
-    const StateBuffer& s = state_[current_];
+    const State& s = state_[current_];
     std::vector<ParticleState> out(static_cast<std::size_t>(count_));
     for (std::size_t i = 0; i < out.size(); ++i)
       out[static_cast<std::size_t>(id_[i])] = {
@@ -198,7 +175,7 @@ class CpuEngine final : public DemEngine {
   }
 
   void set_particles(const std::vector<ParticleState>& p) override {
-    StateBuffer& s = state_[current_];
+    State& s = state_[current_];
     for (std::size_t i = 0; i < p.size(); ++i) {
       const ParticleState& q = p[static_cast<std::size_t>(id_[i])];
       s.x[i] = q.position.x, s.y[i] = q.position.y, s.z[i] = q.position.z;
@@ -209,7 +186,7 @@ class CpuEngine final : public DemEngine {
     for (auto& h : history_) {
       h.neighbour.clear();
       h.neighbour_mask.assign(n, 0);
-      h.wall.assign(step_.variant.history ? 3 * kWallSlots * n : 0, 0.0);
+      h.wall.assign(variant_.history ? 3 * kWallSlots * n : 0, 0.0);
       h.wall_mask.assign(n, 0);
     }
     neighbours_.clear();
@@ -225,82 +202,71 @@ class CpuEngine final : public DemEngine {
     needs_rebuild_ = true;
   }
 
+  // The lists from the compact layout to the checkpoint's.
   StateArrays save() const override {
-    StateArrays out;
-    const StateBuffer& s = state_[current_];
-    for (int k = 0; k < 9; ++k) out[kStateNames[k]] = *s.all[k];
-    out["id"] = id_;
-    out["radius"] = radius_;
-    const HistoryBuffer& h = history_[history_current_];
-    // The checkpoint layout: max_neighbours_ slots per particle (see flat_reverse()).
+    EngineCheckpoint c;
+    const State& s = state_[current_];
+    const auto columns = state_columns(c);
+    for (int k = 0; k < 9; ++k) *columns[k] = *s.all[k];
+    c.id = id_;
+    c.radius = radius_;
+    const History& h = history_[history_current_];
     const std::size_t slots = static_cast<std::size_t>(count_) * max_neighbours_;
-    std::vector<std::int32_t> neighbours(slots, -1), partner(slots, -1), reverse(slots, -1);
-    std::vector<double> history(step_.variant.history ? 3 * slots : 0, 0.0);
+    c.neighbours.assign(slots, -1);
+    c.partner_id.assign(slots, -1);
+    c.reverse.assign(slots, -1);
+    c.history.assign(variant_.history ? 3 * slots : 0, 0.0);
     for (int i = 0; i < count_; ++i) {
       const std::size_t to = static_cast<std::size_t>(i) * max_neighbours_;
       const int from = slot_start_[i], n = neighbour_count_[i];
-      std::copy_n(&neighbours_[from], padded(n), &neighbours[to]);
-      std::copy_n(&partner_id_[from], n, &partner[to]);
-      std::copy_n(&reverse_[reverse_start_[i]], reverse_count_[i], &reverse[to]);
-      for (int k = 0; k < n && !history.empty(); ++k)
-        if (h.neighbour_mask[i] >> k & 1u)
-          std::copy_n(&h.neighbour[3 * (from + k)], 3, &history[3 * (to + k)]);
+      std::copy_n(&neighbours_[from], padded(n), &c.neighbours[to]);
+      std::copy_n(&partner_id_[from], n, &c.partner_id[to]);
+      std::copy_n(&reverse_[reverse_start_[i]], reverse_count_[i], &c.reverse[to]);
+      if (variant_.history) std::copy_n(&h.neighbour[3 * from], 3 * n, &c.history[3 * to]);
     }
-    out["history"] = std::move(history);
-    out["wall_history"] = live_history(h.wall, h.wall_mask, kWallSlots);
-    out["wall_mask"] = h.wall_mask;
-    out["neighbour_mask"] = h.neighbour_mask;
-    out["neighbours"] = std::move(neighbours);
-    out["partner_id"] = std::move(partner);
-    out["neighbour_count"] = neighbour_count_;
-    out["reverse"] = flat_reverse(reverse, max_neighbours_);
-    out["reverse_count"] = reverse_count_;
-    put_grid(out, {grid_, needs_rebuild_, max_neighbours_, travel_});
-    return out;
+    c.wall_history = h.wall;
+    c.wall_mask = h.wall_mask;
+    c.neighbour_mask = h.neighbour_mask;
+    c.neighbour_count = neighbour_count_;
+    c.reverse_count = reverse_count_;
+    save_grid(c);
+    return to_arrays(std::move(c));
   }
 
+  // The lists from the checkpoint's layout to the compact one.
   void restore(const StateArrays& in) override {
-    const GridState g = check_checkpoint(in, count_, step_.variant.history);
-    max_neighbours_ = g.max_neighbours;
-    set_particles(config_.particles);  // sizes every array for max_neighbours_
-    StateBuffer& s = state_[current_];
-    for (int k = 0; k < 9; ++k) *s.all[k] = state_values<double>(in, kStateNames[k]);
-    id_ = state_values<std::int32_t>(in, "id");
-    radius_ = state_values<double>(in, "radius");
+    EngineCheckpoint c = from_arrays(in, count_, variant_.history);
+    set_particles(config_.particles);  // clears the lists
+    restore_grid(c);
+    State& s = state_[current_];
+    const auto columns = state_columns(c);
+    for (int k = 0; k < 9; ++k) *s.all[k] = std::move(*columns[k]);
+    id_ = std::move(c.id);
+    radius_ = std::move(c.radius);
     set_mass_properties();
-    HistoryBuffer& h = history_[history_current_];
-    h.wall = state_values<double>(in, "wall_history");
-    h.wall_mask = state_values<std::uint8_t>(in, "wall_mask");
-    h.neighbour_mask = state_values<std::uint64_t>(in, "neighbour_mask");
-    // From the checkpoint layout (max_neighbours_ slots per particle) to the compact one.
-    neighbour_count_ = state_values<std::int32_t>(in, "neighbour_count");
-    reverse_count_ = state_values<std::int32_t>(in, "reverse_count");
-    const auto& neighbours = state_values<std::int32_t>(in, "neighbours");
-    const auto& partner = state_values<std::int32_t>(in, "partner_id");
-    const std::vector<std::int32_t> reverse =
-        packed_reverse(state_values<std::int32_t>(in, "reverse"), max_neighbours_);
-    const std::vector<double>& history = state_values<double>(in, "history");
+    History& h = history_[history_current_];
+    h.wall = std::move(c.wall_history);
+    h.wall_mask = std::move(c.wall_mask);
+    h.neighbour_mask = std::move(c.neighbour_mask);
+    neighbour_count_ = std::move(c.neighbour_count);
+    reverse_count_ = std::move(c.reverse_count);
     set_slot_starts();
     set_reverse_starts();
     for (int i = 0; i < count_; ++i) {
       const std::size_t from = static_cast<std::size_t>(i) * max_neighbours_;
       const int to = slot_start_[i], n = neighbour_count_[i];
-      std::copy_n(&neighbours[from], padded(n), &neighbours_[to]);
-      std::copy_n(&partner[from], n, &partner_id_[to]);
-      std::copy_n(&reverse[from], reverse_count_[i], &reverse_[reverse_start_[i]]);
-      if (step_.variant.history) std::copy_n(&history[3 * from], 3 * n, &h.neighbour[3 * to]);
+      std::copy_n(&c.neighbours[from], padded(n), &neighbours_[to]);
+      std::copy_n(&c.partner_id[from], n, &partner_id_[to]);
+      std::copy_n(&c.reverse[from], reverse_count_[i], &reverse_[reverse_start_[i]]);
+      if (variant_.history) std::copy_n(&c.history[3 * from], 3 * n, &h.neighbour[3 * to]);
     }
-    travel_ = g.travel;
-    grid_ = g.grid;
-    needs_rebuild_ = g.needs_rebuild;
   }
 
   // Memory held now: the lists take what the last build needed (nothing before the first step).
   std::size_t bytes_per_particle() const override {
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-    std::size_t sum = pair_capacity_ * step_.variant.pair_doubles * sizeof(double) +
-                      bytes(radius_) + bytes(inv_mass_) + bytes(inv_inertia_) + bytes(incoming_) +
-                      bytes(expiry_);
+    std::size_t sum = pair_capacity_ * variant_.pair_doubles * sizeof(double) + bytes(radius_) +
+                      bytes(inv_mass_) + bytes(inv_inertia_) + bytes(incoming_) + bytes(expiry_);
     for (const auto& component : loads_) sum += bytes(component);
     for (const auto& s : state_)
       for (const auto* a : s.all) sum += bytes(*a);
@@ -315,51 +281,29 @@ class CpuEngine final : public DemEngine {
 
  private:
   void set_mass_properties() {
-    for (std::size_t i = 0; i < radius_.size(); ++i) {
-      const SphereMass m = sphere_mass(radius_[i], config_.density);
-      inv_mass_[i] = m.inv_mass;
-      inv_inertia_[i] = m.inv_inertia;
-    }
+    MassProperties m = mass_properties(radius_);
+    inv_mass_ = std::move(m.inv_mass);
+    inv_inertia_ = std::move(m.inv_inertia);
   }
 
   ParticleStepArgs args(const ContainerKinematics& container, double dt) {
-    StateBuffer& in = state_[current_];
     // In place without recompute. Only the particle pass writes the state, each particle its
     // own. On several threads a barrier separates it from the pair pass; on one, a block's
     // particle pass follows its pairs, and later pairs read only particles of higher index.
-    StateBuffer& out = state_[config_.recompute ? current_ ^ 1 : current_];
-    HistoryBuffer& hin = history_[history_current_];
     // Likewise the tangential history: each slot is read and then rewritten by its one
     // contact, so only a step that may be recomputed needs a second buffer (in place: +5 to
     // +10 % at 8,000 spheres, the history's cache traffic halved).
-    HistoryBuffer& hout = config_.recompute ? history_[history_current_ ^ 1] : hin;
-    ParticleStepArgs a = scene_args_;
-    a.dt = dt;
-    a.container = container;
-    a.in = in.view();
-    a.out = out.view();
-    a.radius = radius_.data();
-    a.inv_mass = inv_mass_.data();
-    a.inv_inertia = inv_inertia_.data();
-    a.neighbours = neighbours_.data();
-    a.neighbour_count = neighbour_count_.data();
-    a.reverse = reverse_.data();
-    a.reverse_count = reverse_count_.data();
-    a.slot_start = slot_start_.data();
-    a.reverse_start = reverse_start_.data();
-    a.history = history_view(hin, hout);
-    a.incoming = incoming_.data();
-    a.pair_load = pair_load_.get();
-    return a;
+    const int back = config_.recompute ? 1 : 0;
+    return step_args(container, dt, state_[current_], state_[current_ ^ back],
+                     history_[history_current_], history_[history_current_ ^ back],
+                     pair_load_.get());
   }
 
   // Sorts the particles by grid cell and rebuilds the neighbour lists, carrying the history.
   void rebuild(const ContainerKinematics& container) {
     const std::size_t n = static_cast<std::size_t>(count_);
-    StateBuffer& s = state_[current_];
-    grid_ = grid_around(container.position,
-                        world_half_size(config_.geometry.half_size, config_.orientation),
-                        2 * sizes_.r_max + sizes_.skin);
+    State& s = state_[current_];
+    grid_ = rebuild_grid(container);
     const CellOrder sorted = sort_by_cell(grid_, n, [&](std::size_t i) {
       return Vec3{s.x[i], s.y[i], s.z[i]};
     });
@@ -370,45 +314,23 @@ class CpuEngine final : public DemEngine {
     permute(radius_, order);
     permute(inv_mass_, order);
     permute(inv_inertia_, order);
-    HistoryBuffer& hin = history_[history_current_];
-    HistoryBuffer& scratch = history_[history_current_ ^ 1];
+    History& hin = history_[history_current_];
+    History& scratch = history_[history_current_ ^ 1];
     // Through the other history buffer: a scratch, or the back buffer that the next step
     // rewrites (masks whole, history where live).
     permute(hin.wall, order, 3 * kWallSlots, scratch.wall);
     permute(hin.wall_mask, order, 1, scratch.wall_mask);
 
-    NeighbourBuildArgs b{};
-    b.count = count_;
-    b.grid = grid_;
-    b.x = s.x.data();
-    b.y = s.y.data();
-    b.z = s.z.data();
-    b.radius = step_.variant.polydisperse ? radius_.data() : nullptr;
-    b.mono_radius = radius_[0];
-    b.skin = sizes_.skin;
-    b.cell_start = cell_start.data();
-    b.cell_end = cell_start.data() + 1;
-    b.id = id_.data();
-    b.max_neighbours = max_neighbours_;
-    b.slot_start = slot_start_.data();
-    b.reverse_start = reverse_start_.data();
-    b.neighbour_count = neighbour_count_.data();
-    b.reverse_count = reverse_count_.data();
+    // The lists are compact: counted first (no lists to write into), then written from their
+    // starts.
+    NeighbourBuildArgs b = build_args(s, cell_start.data(), cell_start.data() + 1);
+    b.neighbours = b.partner_id = b.reverse = nullptr;
     const std::vector<std::int32_t> old_start = slot_start_, old_partner = partner_id_,
                                     old_count = neighbour_count_;
-    // The lists are compact: counted first, then written from their starts.
     bool fits = for_all([&](int i) { return build_neighbours_of(i, b); });
     set_slot_starts();
-    if (step_.variant.history) {
-      b.old_index = order.data();
-      b.old_slot_start = old_start.data();
-      b.old_partner_id = old_partner.data();
-      b.old_neighbour_count = old_count.data();
-      b.old_mask = hin.neighbour_mask.data();
-      b.old_history = hin.neighbour.data();
-      b.new_mask = scratch.neighbour_mask.data();
-      b.new_history = scratch.neighbour.data();
-    }
+    carry_history(b, order.data(), old_start.data(), old_partner.data(), old_count.data(), hin,
+                  scratch);
     b.neighbours = neighbours_.data();
     b.partner_id = partner_id_.data();
     fits &= for_all([&](int i) { return build_neighbours_of(i, b); });
@@ -417,7 +339,7 @@ class CpuEngine final : public DemEngine {
     b.reverse = reverse_.data();
     build_reverse_lists(b);
     if (!fits) throw SimulationError(neighbour_overflow_message(max_neighbours_));
-    if (step_.variant.history) {
+    if (variant_.history) {
       std::swap(hin.neighbour, scratch.neighbour);
       std::swap(hin.neighbour_mask, scratch.neighbour_mask);
     }
@@ -453,12 +375,12 @@ class CpuEngine final : public DemEngine {
                      static_cast<std::size_t>(std::min(count_, kBlock)) * kMaxWallContacts);
     grow(neighbours_, slots);
     grow(partner_id_, slots);
-    if (step_.variant.history)
+    if (variant_.history)
       for (auto& h : history_) grow(h.neighbour, 3 * slots);
     if (slots > pair_capacity_) {
       // Written before it is read, and only for pairs in contact: left uninitialised.
       pair_capacity_ = slots + slots / 4;
-      pair_load_.reset(new double[step_.variant.pair_doubles * pair_capacity_]);
+      pair_load_.reset(new double[variant_.pair_doubles * pair_capacity_]);
     }
   }
   void set_reverse_starts() {
@@ -470,30 +392,16 @@ class CpuEngine final : public DemEngine {
     if (v.size() < size) v.resize(size);
   }
 
-  EngineConfig config_;
   CpuStep step_;
-  EngineSizes sizes_;
-  ParticleStepArgs scene_args_ = scene_step_args(config_);
-  int count_ = 0, threads_ = 1, max_neighbours_ = 1;
+  int threads_ = 1;
   int current_ = 0, history_current_ = 0;  // the front buffers
-  double dt_ = 0, travel_ = 0;             // last step size; drift bound since the last build (m)
   std::vector<double> expiry_;             // ClearanceSkip, per particle
   std::vector<double> loads_[6];           // LoadArrays
-  StateBuffer state_[2];
-  HistoryBuffer history_[2];
-  std::vector<double> radius_, inv_mass_, inv_inertia_;
-  // Lists in a compact layout: particle i's from slot_start_[i] (reverse_start_[i]).
-  std::vector<std::int32_t> id_, neighbours_, partner_id_, neighbour_count_, slot_start_, reverse_,
-      reverse_count_, reverse_start_;
-  std::vector<std::uint32_t> incoming_;
   std::unique_ptr<double[]> pair_load_;
   std::size_t pair_capacity_ = 0;  // slots pair_load_ holds
-  Grid grid_{};
-  bool needs_rebuild_ = true;
   std::vector<StepTotals> block_totals_;
   std::vector<ContactBatch> batches_;  // one per thread
   BlockShares pair_shares_, particle_shares_;
-  StepTotals totals_;
 };
 
 }  // namespace

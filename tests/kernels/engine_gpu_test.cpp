@@ -313,7 +313,7 @@ TEST_CASE(
       advance(*engine, 0, 300);
       const StateArrays good = engine->save();
       // save() writes the table's arrays and no others, so the check below covers the file.
-      CHECK(good.size() == std::size(kCheckpointFields));
+      CHECK(good.size() == checkpoint_arrays().size());
       REQUIRE_NOTHROW(e.make(config)->restore(good));
       auto refused = [&](StateArrays damaged, const std::string& message) {
         auto fresh = e.make(config);

@@ -13,8 +13,9 @@ namespace pdsim {
 struct ExcitationTraits {
   ExcitationKind kind;
   const char* name;  // excitation.kind in a deck
-  // Its frequencies run as points, each by several fills side by side (rows in /frf or
-  // /prescribed, the ensemble of fills, a checkpoint per point); else one run of one fill.
+  // Its frequencies run each by several fills side by side (the ensemble of fills, rows in
+  // /frf or /prescribed, a checkpoint per point); else one fill runs its one point (a sine's
+  // frequency, a free decay). The Driver runs both alike.
   bool points;
   bool moves_containers;  // the containers' motion is prescribed (no structure is driven)
   // A point's periods: kFixed, those of excitation.duration; kSteady, until the steady state
@@ -33,7 +34,7 @@ inline const ExcitationTraits& traits(ExcitationKind kind) {
   return kExcitations[static_cast<int>(kind)];
 }
 
-// Whether x's frequencies run as points of several fills (stepped_sine, prescribed).
+// Whether x's points run by several fills (stepped_sine, prescribed).
 inline bool runs_points(const ExcitationSpec& x) {
   return traits(x.kind).points;
 }
@@ -51,6 +52,17 @@ inline bool runs_to_steady_state(const ExcitationSpec& x) {
   const auto p = traits(x.kind).periods;
   return p == ExcitationTraits::kSteady ||
          (p == ExcitationTraits::kFixedIfDuration && x.duration <= 0);
+}
+
+// Whether x's points measure a harmonic (rows, the ensemble of fills); a free decay's one
+// point records its time history only.
+inline bool measures_harmonics(const ExcitationSpec& x) {
+  return traits(x.kind).periods != ExcitationTraits::kNone;
+}
+
+// Whether x's points are an FRF of the structure, with a peak to report (stepped sine).
+inline bool sweeps_frf(const ExcitationSpec& x) {
+  return traits(x.kind).points && !traits(x.kind).moves_containers;
 }
 
 // The frequencies x runs, Hz, in order: a sine's one frequency, else the list (prescribed

@@ -33,7 +33,8 @@ class Driver::Impl {
     const bool swept = runs_points(x);
     fills_min_ = swept ? x.settle.realisations : 1;
     fills_max_ = swept && !fixed_duration(x) ? x.settle.max_realisations : fills_min_;
-    frequencies_ = first.frequencies;
+    // Every kind runs as points: its frequencies, or a free decay's one point (no frequency).
+    frequencies_ = first.frequencies.empty() ? std::vector<double>{0.0} : first.frequencies;
     sweeps_ = x.sweeps;
     sweeps_.resize(frequencies_.size(), 1);
     const auto fills = static_cast<std::size_t>(fills_max_), steps = frequencies_.size();
@@ -99,30 +100,7 @@ class Driver::Impl {
     g_stop_runs = g_interrupted != 0;  // an interrupt before the start stops it at once
     checkpoint_ = checkpoint;
     stop_after_ = stop_after;
-    const ExcitationSpec& x = excitation();
-    if (!runs_points(x)) {
-      Progress progress(quiet_, 1, 1.0, false);
-      FrequencyRun run(scene(0), [&](double f, double done) { progress.update(0, done, f); });
-      try {
-        reports_[0] = run.settle_bed();
-        if (x.kind == ExcitationKind::free_decay) {
-          run.run_free_decay();
-        } else {
-          points_[0][0] = run.run_frequency(x.frequency, FrequencyStart::carried);
-          done_[0] = 1;
-        }
-      } catch (const SimulationError& e) {
-        fail(run, 0, e);
-      }
-      results_.timeseries = run.timeseries();
-      results_.energy = run.energy();
-      results_.particles = run.particles();
-      Seen from_start;
-      account(run, from_start);
-      progress.finish();
-    } else {
-      run_tasks();
-    }
+    run_tasks();
     if (!stopped_) add_rows(results_);
     wall_ = wall_before_ + std::chrono::duration<double>(Clock::now() - started_).count();
     provenance(results_);
@@ -160,6 +138,7 @@ class Driver::Impl {
   // way to a later point join it only in the rows, so that no decision depends on the order
   // fills run in), or on all that ran it.
   Ensemble judge_step(std::size_t s, std::size_t count = SIZE_MAX) const {
+    if (!measures_harmonics(excitation())) return {};  // nothing to judge: done once run
     std::vector<FrequencyPoint> runs;
     for (const auto& [r, p] : fills_at(s))
       if (static_cast<std::size_t>(r) < count) runs.push_back(p);
@@ -168,6 +147,7 @@ class Driver::Impl {
 
   // The /frf (or /prescribed) rows of every finished point, in the order they are run.
   void add_rows(Results& out) const {
+    if (!measures_harmonics(excitation())) return;
     for (std::size_t s = 0; s < frequencies_.size(); ++s)
       if (done_[s]) add_row(out, fills_at(s), sweeps_[s], excitation());
   }
@@ -469,7 +449,7 @@ class Driver::Impl {
     const auto k = static_cast<std::size_t>(reached_[r] + 1);
     FrequencyPoint point;
     try {
-      point = run.run_frequency(frequencies_[k], excitation().start);
+      point = run.run_point(frequencies_[k]);
     } catch (const SimulationError& e) {
       fail(run, r, e);
     }
@@ -506,7 +486,7 @@ class Driver::Impl {
           Seen seen{run.system().particle_steps(), run.system().time()};
           FrequencyPoint point;
           try {
-            point = run.run_frequency(frequencies_[s], excitation().start);
+            point = run.run_point(frequencies_[s]);
           } catch (const SimulationError& e) {
             fail(run, r, e);
           }
@@ -533,8 +513,8 @@ class Driver::Impl {
   void finished_step(std::size_t s) {
     ++finished_;
     done_[s] = 1;
-    const Ensemble e = judge_step(s);
-    progress_->say(point_name(s) + ": " + ensemble_text(e, prescribed()));
+    if (measures_harmonics(excitation()))
+      progress_->say(point_name(s) + ": " + ensemble_text(judge_step(s), prescribed()));
     if (std::all_of(done_.begin(), done_.end(), [](char d) { return d != 0; }) || !checkpoint_)
       return;
     std::size_t fills = 0;  // fills 0..fills-1 have begun
@@ -585,13 +565,17 @@ class Driver::Impl {
   }
 
   std::string describe(const FrequencyPoint& p, std::size_t r) const {
+    const ExcitationSpec& x = excitation();
+    if (!measures_harmonics(x))
+      return "free decay from " + number(x.initial_displacement) + " m: " + number(x.duration) +
+             " s";
     std::ostringstream s;
     s.precision(4);
     s << "f = " << p.frequency << " Hz";
     if (fills_max_ > 1) s << " (fill " << r + 1 << ")";
     s << ": " << amplitude_text(std::abs(p.judged.mean), p.judged.amplitude_ci, prescribed())
       << ", " << p.judged.periods << " periods (" << p.judged.discarded << " warm-up)";
-    if (fixed_duration(excitation()))
+    if (fixed_duration(x))
       s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
     else
       s << (p.judged.converged  ? ", settled"

@@ -313,6 +313,13 @@ FrequencyPoint FrequencyRun::finish() {
   return point;
 }
 
+FrequencyPoint FrequencyRun::run_point(double frequency) {
+  const ExcitationSpec& x = scene_.excitation;
+  if (measures_harmonics(x)) return run_frequency(frequency, x.start);
+  run_free_decay();
+  return {};
+}
+
 void FrequencyRun::run_free_decay() {
   const ExcitationSpec& x = scene_.excitation;
   const double f1 = first_mode();

@@ -28,7 +28,7 @@ std::string summary_line(const Results& r, const std::string& path, const Deck& 
   std::ostringstream s;
   s.precision(4);
   const bool fixed = fixed_duration(deck.excitation);
-  if (!r.frf.frequency.empty() && deck.excitation.kind == ExcitationKind::stepped_sine) {
+  if (!r.frf.frequency.empty() && sweeps_frf(deck.excitation)) {
     const FrfTable& f = r.frf;
     int results = 0, branched = 0;
     for (int k : f.result) results += k > 0, branched += k == 2;

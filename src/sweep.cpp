@@ -114,7 +114,7 @@ pid_t launch(const Point& p, const SweepOptions& o, int threads) {
 
 // One row per point: its values, how it ended, and the headline results of its file.
 void write_summary(const Deck& deck, const std::vector<Point>& points, const std::string& path) {
-  const bool frf = deck.excitation.kind == ExcitationKind::stepped_sine;
+  const bool frf = sweeps_frf(deck.excitation);
   const bool prescribed = traits(deck.excitation.kind).moves_containers;
   std::ofstream out(path + ".partial");
   out << "point";

@@ -667,7 +667,6 @@ ExcitationSpec read_excitation(const Table& t) {
     } else {
       e.frequency = t.need_real("frequency", "a positive number (Hz)", positive, why);
       e.duration = t.need_real("duration", positive_s, positive, why);
-      e.start = FrequencyStart::carried;  // from the bed at rest, no predicted start
     }
   } else if (e.kind == ExcitationKind::free_decay) {
     const std::string why = "for kind = \"free_decay\"";

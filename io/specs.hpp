@@ -80,7 +80,7 @@ struct ExcitationSpec {
   std::vector<int> sweeps;          // per frequency: +1 sweeping up, -1 down (direction "both":
                                     // the list up, then down from the top again)
   SettleSpec settle;
-  FrequencyStart start = FrequencyStart::predicted;  // stepped_sine (prescribed, sine: carried)
+  FrequencyStart start = FrequencyStart::predicted;  // stepped_sine (prescribed: carried)
   double frequency = 0;                              // Hz, `sine`
   double duration = 0;                               // s, `sine`, `free_decay`, `prescribed`
   double initial_displacement = 0;                   // m, `free_decay`

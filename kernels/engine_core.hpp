@@ -90,7 +90,8 @@ struct CheckpointField {
 };
 
 // The checkpoint's arrays, declared once: f(field, array) for each, its element type the
-// array's. The grid's six values are written and read by put_grid() and get_grid().
+// array's. The grid's six values (kGridArrays) are written by to_arrays() and read by
+// from_arrays().
 template <class Checkpoint, class F>
 void for_each_array(Checkpoint& c, F&& f) {
   using E = CheckpointExtent;
@@ -199,8 +200,10 @@ inline EngineCheckpoint from_arrays(const StateArrays& in, int count, bool histo
             cells[2]};
   c.needs_rebuild = state_value<std::int32_t>(in, kGridArrays[3]) != 0;
   c.max_neighbours = state_value<std::int32_t>(in, kGridArrays[4]);
-  if (c.max_neighbours <= 0 || c.max_neighbours % kSlotGroup != 0)
-    throw SimulationError("the checkpoint's max_neighbours is not a whole number of slot groups");
+  if (c.max_neighbours <= 0 || c.max_neighbours > 64 || c.max_neighbours % kSlotGroup != 0)
+    throw SimulationError(
+        "the checkpoint's max_neighbours is not a whole number of slot groups up to 64 (the "
+        "width of the slot masks)");
   c.travel = state_value<double>(in, kGridArrays[5]);
   check_particle_count(count, c.max_neighbours);
 

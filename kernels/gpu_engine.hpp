@@ -227,7 +227,8 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
       for (int k = 0; k < 9; ++k) c[static_cast<std::size_t>(k)][i] = values[k];
     }
     State& s = state_[current_];
-    for (int k = 0; k < 9; ++k) s.all[k]->upload(c[static_cast<std::size_t>(k)], exec_, "state");
+    for (int k = 0; k < 9; ++k)
+      s.all[k]->upload(c[static_cast<std::size_t>(k)], exec_, "particle state");
     clear_history();
     exec_.synchronize();  // the uploads read host memory that is about to go away
     needs_rebuild_ = true;
@@ -260,7 +261,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     size_neighbour_arrays();
     State& s = state_[current_];
     const auto columns = state_columns(c);
-    for (int k = 0; k < 9; ++k) s.all[k]->upload(*columns[k], exec_, "state");
+    for (int k = 0; k < 9; ++k) s.all[k]->upload(*columns[k], exec_, "particle state");
     id_.upload(c.id, exec_, "id");
     upload_particle_constants(c.radius);
     clear_history();
@@ -324,10 +325,10 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     // Fixed stride: particle i's lists start at i * max_neighbours (forward and reverse alike).
     std::vector<std::int32_t> start(n + 1);
     for (std::size_t i = 0; i <= n; ++i) start[i] = static_cast<std::int32_t>(i) * max_neighbours_;
-    for (auto* a : {&slot_start_, &reverse_start_}) {
-      a->resize(n + 1);
-      a->upload(start, exec_, "slot_start");
-    }
+    slot_start_.resize(n + 1);
+    slot_start_.upload(start, exec_, "slot_start");
+    reverse_start_.resize(n + 1);
+    reverse_start_.upload(start, exec_, "reverse_start");
     exec_.synchronize();  // `start` is host memory about to go away
   }
 

@@ -302,7 +302,7 @@ class Driver::Impl {
     const double total =
         independent() ? double(todo) * fills_min_ : double(frequencies_.size()) * fills_min_;
     Progress progress(quiet_, std::max(slots, beds_.size()), std::max(total, 1.0),
-                      !fixed_duration(excitation()));
+                      runs_to_steady_state(excitation()));
     progress_ = &progress;
     settle_beds(progress);
     if (independent())
@@ -453,11 +453,13 @@ class Driver::Impl {
     } catch (const SimulationError& e) {
       fail(run, r, e);
     }
-    StateArrays state = checkpoint_ ? run.save() : StateArrays{};
+    // The fill's state, for a resume, while it has points left.
+    const bool more = k + 1 < frequencies_.size();
+    StateArrays state = checkpoint_ && more ? run.save() : StateArrays{};
     std::lock_guard<std::mutex> lock(mutex_);
     points_[r][k] = std::move(point);
     reached_[r] = static_cast<long>(k);
-    if (checkpoint_) task_states_[r] = std::move(state);
+    if (checkpoint_ && more) task_states_[r] = std::move(state);
     account(run, seen_[r]);
     if (r == 0) {
       results_.timeseries = run.timeseries();

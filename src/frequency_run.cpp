@@ -315,7 +315,9 @@ FrequencyPoint FrequencyRun::finish() {
 
 FrequencyPoint FrequencyRun::run_point(double frequency) {
   const ExcitationSpec& x = scene_.excitation;
-  if (measures_harmonics(x)) return run_frequency(frequency, x.start);
+  // A point of one fill (a sine) starts from the bed at rest.
+  if (measures_harmonics(x))
+    return run_frequency(frequency, runs_points(x) ? x.start : FrequencyStart::carried);
   run_free_decay();
   return {};
 }

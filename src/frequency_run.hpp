@@ -60,8 +60,8 @@ class FrequencyRun {
   int periods_running() const { return periods_running_.load(std::memory_order_relaxed); }
   // A free decay: `duration` seconds of time history from the initial displacement.
   void run_free_decay();
-  // One point of the scene's excitation: `frequency` started as excitation.start says, or the
-  // free decay (an empty point; see measures_harmonics()).
+  // One point of the scene's excitation: `frequency` started as excitation.start says (a sine
+  // from the bed at rest), or the free decay (an empty point; see measures_harmonics()).
   FrequencyPoint run_point(double frequency);
 
   // Time series (and /energy when asked for) recorded so far.

@@ -219,10 +219,12 @@ class CpuEngine final : public EngineCore<CpuArray> {
     for (int i = 0; i < count_; ++i) {
       const std::size_t to = static_cast<std::size_t>(i) * max_neighbours_;
       const int from = slot_start_[i], n = neighbour_count_[i];
-      std::copy_n(&neighbours_[from], padded(n), &c.neighbours[to]);
-      std::copy_n(&partner_id_[from], n, &c.partner_id[to]);
-      std::copy_n(&reverse_[reverse_start_[i]], reverse_count_[i], &c.reverse[to]);
-      if (variant_.history) std::copy_n(&h.neighbour[3 * from], 3 * n, &c.history[3 * to]);
+      // data() + offset: the lists are empty before the first build.
+      std::copy_n(neighbours_.data() + from, padded(n), c.neighbours.data() + to);
+      std::copy_n(partner_id_.data() + from, n, c.partner_id.data() + to);
+      std::copy_n(reverse_.data() + reverse_start_[i], reverse_count_[i], c.reverse.data() + to);
+      if (variant_.history)
+        std::copy_n(h.neighbour.data() + 3 * from, 3 * n, c.history.data() + 3 * to);
     }
     c.wall_history = h.wall;
     c.wall_mask = h.wall_mask;
@@ -255,10 +257,11 @@ class CpuEngine final : public EngineCore<CpuArray> {
     for (int i = 0; i < count_; ++i) {
       const std::size_t from = static_cast<std::size_t>(i) * max_neighbours_;
       const int to = slot_start_[i], n = neighbour_count_[i];
-      std::copy_n(&c.neighbours[from], padded(n), &neighbours_[to]);
-      std::copy_n(&c.partner_id[from], n, &partner_id_[to]);
-      std::copy_n(&c.reverse[from], reverse_count_[i], &reverse_[reverse_start_[i]]);
-      if (variant_.history) std::copy_n(&c.history[3 * from], 3 * n, &h.neighbour[3 * to]);
+      std::copy_n(c.neighbours.data() + from, padded(n), neighbours_.data() + to);
+      std::copy_n(c.partner_id.data() + from, n, partner_id_.data() + to);
+      std::copy_n(c.reverse.data() + from, reverse_count_[i], reverse_.data() + reverse_start_[i]);
+      if (variant_.history)
+        std::copy_n(c.history.data() + 3 * from, 3 * n, h.neighbour.data() + 3 * to);
     }
   }
 

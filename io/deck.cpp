@@ -743,6 +743,30 @@ BedSpec read_bed(const std::optional<Table>& t, bool gravity_on_particles) {
   return b;
 }
 
+MapSpec read_map(const Table& t) {
+  MapSpec m;
+  t.allow_only({"amplitudes", "accelerations", "frequencies", "duration"});
+  const std::string why = "in [map]";
+  if (t.has("amplitudes") == t.has("accelerations"))
+    t.fail(t.has("amplitudes") ? "accelerations" : "amplitudes",
+           "give either amplitudes (m) or accelerations (g), one of them");
+  if (t.has("amplitudes"))
+    m.amplitudes = *t.reals("amplitudes", 0, "a non-empty array of positive numbers (m)", positive);
+  else
+    m.accelerations =
+        *t.reals("accelerations", 0, "a non-empty array of positive numbers (g)", positive);
+  if (!t.has("frequencies"))
+    t.missing("frequencies", "a table { start, stop, step } or an array (Hz)", why);
+  m.frequencies = read_frequencies(t);
+  m.duration = t.real("duration", "a positive number (s)", positive).value_or(0);
+  const std::size_t points = (m.amplitudes.size() + m.accelerations.size()) * m.frequencies.size();
+  if (points > kMaxFrequencies)
+    t.fail("frequencies", "expected at most " + std::to_string(kMaxFrequencies) +
+                              " grid points (amplitudes x frequencies), got " +
+                              std::to_string(points));
+  return m;
+}
+
 OutputSpec read_output(const Table& t) {
   OutputSpec o;
   t.allow_only({"file", "every", "energy", "particles"});
@@ -1007,7 +1031,7 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
 
   const Table top(root, "", SourcePos{path, 0, 0});
   top.allow_only({"title", "structure", "damper", "contact", "gravity", "excitation", "bed",
-                  "coupling", "solver", "output", "sweep"});
+                  "coupling", "solver", "output", "sweep", "map"});
   deck.title = top.text("title").value_or("");
   const std::string table = "a table";
 
@@ -1055,10 +1079,13 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
   if (const auto coupling = top.sub("coupling", table)) deck.coupling = read_coupling(*coupling);
   if (const auto solver = top.sub("solver", table)) deck.solver = read_solver(*solver);
   if (const auto output = top.sub("output", table)) deck.output = read_output(*output);
+  if (const auto map = top.sub("map", table)) deck.map = read_map(*map);
   settle_realisations(deck);
   if (const toml::node* sweep = root.get("sweep")) {
     if (!sweep->as_table()) top.wrong(*sweep, "sweep", table);
     deck.sweep = read_sweep(*sweep->as_table(), path);
+    if (deck.map.given())
+      top.fail("map", "not with a [sweep] table: a map is of one damper (remove one of them)");
   }
   return deck;
 }

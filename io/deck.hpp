@@ -40,6 +40,7 @@ struct Deck {
   SolverSpec solver;
   OutputSpec output;
   SweepSpec sweep;
+  MapSpec map;
   int point = 0;  // the sweep point this deck is (1-based), 0 for the deck itself
   // Where each key given in the deck stands, by dotted name ("damper[0].particles.count").
   std::map<std::string, SourcePos> positions;

@@ -182,6 +182,41 @@ void prescribed_columns(T& t, F&& f) {
   f("interval", t.interval, "1", kIntervalKinds);
 }
 
+// A damper map (`pdsim map`): one row per grid point of prescribed motion X sin(w t) along the
+// structure's direction. The first harmonic of the particles' force on the container,
+// F1 = (w^2 m_eff - i w c_eff) X, gives the effective mass and damping a host feels.
+struct MapTable {
+  std::vector<double> frequency, amplitude, acceleration, force_amplitude, force_amplitude_ci,
+      force_phase, force_phase_ci, effective_mass, effective_mass_ci, effective_damping,
+      effective_damping_ci, dissipated_power, dissipated_power_ci;
+  std::vector<int> periods, converged, realisations;
+};
+template <class T, class F>
+void map_columns(T& t, F&& f) {
+  f("frequency", t.frequency, "Hz", "frequency of the container motion");
+  f("amplitude", t.amplitude, "m", "amplitude X of the container motion");
+  f("acceleration", t.acceleration, "g", "peak acceleration X w^2 of the motion, in 9.80665 m/s^2");
+  f("force_amplitude", t.force_amplitude, "N",
+    "first harmonic |F1| of the particles' force on the container along the motion");
+  f("force_amplitude_ci", t.force_amplitude_ci, "N", "95 % half-width of force_amplitude");
+  f("force_phase", t.force_phase, "rad", "phase of F1 against the displacement");
+  f("force_phase_ci", t.force_phase_ci, "rad", "95 % half-width of force_phase");
+  f("effective_mass", t.effective_mass, "kg",
+    "Re(F1 / X) / w^2: the mass a host feels (a rigid load: its mass; may be negative)");
+  f("effective_mass_ci", t.effective_mass_ci, "kg", "95 % half-width, from F1's intervals");
+  f("effective_damping", t.effective_damping, "N s/m",
+    "-Im(F1 / X) / w: the viscous damping a host feels");
+  f("effective_damping_ci", t.effective_damping_ci, "N s/m",
+    "95 % half-width, from F1's intervals");
+  f("dissipated_power", t.dissipated_power, "W",
+    "mean power the container puts into the particles (w^2 X^2 effective_damping / 2)");
+  f("dissipated_power_ci", t.dissipated_power_ci, "W", "95 % half-width of dissipated_power");
+  f("periods", t.periods, "1", "periods run at this point (the longest fill)");
+  f("converged", t.converged, "1",
+    "1 when the force harmonic is stationary and known to excitation.settle.tolerance");
+  f("realisations", t.realisations, "1", "fills behind the point");
+}
+
 struct PeriodTable {  // one row per period run, per frequency and realisation
   std::vector<double> frequency, amplitude, phase, force_amplitude, force_phase, energy_in;
   std::vector<int> realisation, period, stationary;
@@ -293,6 +328,7 @@ struct Results {
   FillTable fills;           // /frf/fills
   BranchTable branch_means;  // /frf/branch_means
   PrescribedTable prescribed;
+  MapTable map;         // /map, written by pdsim map
   PeriodTable periods;  // the per-period harmonics behind /frf or /prescribed
   std::optional<EnergySeries> energy;
   std::optional<ParticleSnapshots> particles;

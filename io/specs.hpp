@@ -118,4 +118,16 @@ struct OutputSpec {
   double particles_every = 0;  // s between particle snapshots (/particles and OUT.xdmf); 0 = none
 };
 
+// A damper map, the [map] table (`pdsim map`): the deck's dampers under prescribed sinusoidal
+// motion along the structure's direction over a grid of motion amplitudes (or peak
+// accelerations) and frequencies.
+struct MapSpec {
+  std::vector<double> amplitudes;     // m; or
+  std::vector<double> accelerations;  // in units of kStandardGravity
+  std::vector<double> frequencies;    // Hz
+  double duration = 0;                // s per point; 0 = until the steady state (excitation.settle)
+  bool given() const { return !frequencies.empty(); }
+};
+constexpr double kStandardGravity = 9.80665;  // m/s^2, the unit of [map] accelerations
+
 }  // namespace pdsim

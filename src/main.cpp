@@ -7,6 +7,7 @@
 #include "pdsim_version.hpp"
 #include "src/bench.hpp"
 #include "src/check_report.hpp"
+#include "src/damper_map.hpp"
 #include "src/run.hpp"
 #include "src/sweep.hpp"
 #include "structure/structure.hpp"
@@ -75,6 +76,23 @@ int main(int argc, char** argv) {
                   "keep finished points and continue interrupted ones");
   sweep->add_flag("--force", sweep_options.force, "rerun every point, overwriting its file");
 
+  pdsim::MapOptions map_options;
+  auto* map = app.add_subcommand(
+      "map", "characterise the deck's dampers under prescribed motion over its [map] grid");
+  map->add_option("deck", deck_path, "input deck (TOML) with a [map] table")->required();
+  map->add_option("-o,--output", map_options.output,
+                  "map file (default: the deck's output name with _map.h5; its runs beside it in "
+                  "a _runs folder)");
+  map->add_option("--threads", map_options.threads, "CPU threads (default: all)")->check(kThreads);
+  map->add_option("--jobs", map_options.jobs,
+                  "fills and frequencies side by side within a run (default: one per core)")
+      ->check(kCount);
+  map->add_option("--backend", backend, "cpu, cuda or auto (default: the deck's)");
+  map->add_flag("--resume", map_options.resume,
+                "keep finished runs and continue an interrupted one");
+  map->add_flag("--force", map_options.force, "run every grid point anew, overwriting");
+  map->add_flag("--quiet", map_options.quiet, "no progress lines");
+
   auto* check = app.add_subcommand("check", "validate a deck and print derived quantities");
   check->add_option("deck", deck_path, "input deck (TOML)")->required();
 
@@ -102,6 +120,12 @@ int main(int argc, char** argv) {
       sweep_options.backend = parse_backend(backend);
       return pdsim::run_sweep(deck, sweep_options);
     }
+    if (*map) {
+      map_options.backend = parse_backend(backend);
+      const pdsim::RunReport report = pdsim::run_map(deck, map_options);
+      std::cout << "wrote " << report.output << "\n" << report.summary << "\n";
+      return 0;
+    }
     if (point > 0) deck = pdsim::sweep_point(deck, point);
     if (snapshots > 0) deck = pdsim::with_snapshots(std::move(deck), snapshots);
     if (*modes) {
@@ -118,6 +142,7 @@ int main(int argc, char** argv) {
       std::cout << pdsim::check_report(deck, scene);
       if (deck.sweep.points() > 0 && deck.point == 0)
         std::cout << pdsim::check_sweep(deck, options.threads, options.backend);
+      if (deck.map.given()) std::cout << pdsim::check_map(deck, options.threads, options.backend);
       std::cout << "deck OK\n";
       return 0;
     }

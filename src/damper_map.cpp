@@ -1,0 +1,233 @@
+#include "src/damper_map.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include "src/format.hpp"
+
+namespace pdsim {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// The map file: --output, else the deck's output name with "_map.h5".
+std::string map_path(const Deck& deck, const MapOptions& options) {
+  if (!options.output.empty()) return options.output;
+  const fs::path run = output_path(deck, RunOptions{});
+  return (run.parent_path() / (run.stem().string() + "_map.h5")).string();
+}
+
+// The runs' folder beside the map: "OUT_map.h5" -> "OUT_map_runs".
+std::string runs_folder(const std::string& map) {
+  const fs::path p(map);
+  return (p.parent_path() / (p.stem().string() + "_runs")).string();
+}
+
+// The deck's dampers moved along `axis` by X sin(2 pi f t) at each of `frequencies`.
+Deck prescribed_run(const Deck& deck, const Vec3& axis, double amplitude,
+                    const std::vector<double>& frequencies, const std::string& file,
+                    const std::string& label) {
+  Deck d = deck;
+  ExcitationSpec& x = d.excitation;
+  const SettleSpec settle = deck.excitation.settle;
+  x = ExcitationSpec{};
+  x.kind = ExcitationKind::prescribed;
+  x.motion.axis = axis;
+  x.motion.amplitude = amplitude;
+  x.motion.frequency = frequencies.front();
+  x.frequencies = frequencies;
+  x.sweeps.assign(frequencies.size(), 1);
+  x.settle = settle;
+  x.duration = deck.map.duration;
+  x.start = FrequencyStart::independent;  // every point from the settled bed
+  d.structure = StructureSpec{};
+  d.map = MapSpec{};
+  d.output.file = file;
+  d.output.particles_every = 0;
+  d.output.energy = false;
+  // The runs share one settled bed (the fingerprint checks that it is theirs).
+  if (d.bed.file.empty()) d.bed.file = (fs::path(file).parent_path() / "bed.h5").string();
+  std::ostringstream note;
+  note.precision(17);
+  note << "\n# pdsim map: " << label << ": prescribed motion along [" << axis.x << ", " << axis.y
+       << ", " << axis.z << "], amplitude " << amplitude << " m\n";
+  d.text += note.str();
+  return d;
+}
+
+}  // namespace
+
+std::vector<Deck> map_runs(const Deck& deck, const std::string& folder) {
+  const MapSpec& m = deck.map;
+  if (!m.given())
+    throw InputError(deck.path +
+                     ": the deck has no [map] table (amplitudes or accelerations, "
+                     "and frequencies); see io/decks.md");
+  if (deck.dampers.empty()) throw InputError(deck.path + ": the deck has no [[damper]] to map");
+  Vec3 axis;
+  if (deck.excitation.kind == ExcitationKind::prescribed)
+    axis = deck.excitation.motion.axis;
+  else if (deck.structure.kind == StructureKind::sdof)
+    axis = deck.structure.direction;
+  else
+    throw InputError(deck.path +
+                     ": [map] needs one direction of motion: an SDOF structure's direction or a "
+                     "prescribed motion's axis (a beam's dampers move along its mode shapes)");
+  std::vector<Deck> runs;
+  auto file = [&](std::size_t k) {
+    char name[32];
+    std::snprintf(name, sizeof name, "m%03zu.h5", k + 1);
+    return (fs::path(folder) / name).string();
+  };
+  const std::size_t count =
+      m.amplitudes.empty() ? m.accelerations.size() * m.frequencies.size() : m.amplitudes.size();
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::string label = "run " + std::to_string(k + 1) + " of " + std::to_string(count);
+    if (!m.amplitudes.empty()) {
+      runs.push_back(prescribed_run(deck, axis, m.amplitudes[k], m.frequencies, file(k), label));
+    } else {
+      const double a = m.accelerations[k / m.frequencies.size()];
+      const double f = m.frequencies[k % m.frequencies.size()];
+      const double w = 2 * kPi * f;
+      runs.push_back(
+          prescribed_run(deck, axis, a * kStandardGravity / (w * w), {f}, file(k), label));
+    }
+  }
+  return runs;
+}
+
+MapTable map_rows(const std::vector<Deck>& runs, const std::vector<Results>& results) {
+  MapTable m;
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    const double X = runs[k].excitation.motion.amplitude;
+    const PrescribedTable& p = results[k].prescribed;
+    for (std::size_t i = 0; i < p.frequency.size(); ++i) {
+      const double w = 2 * kPi * p.frequency[i];
+      const double F = p.force_amplitude[i], dF = p.force_amplitude_ci[i];
+      const double phi = p.force_phase[i], dphi = p.force_phase_ci[i];
+      const double c = std::cos(phi), s = std::sin(phi);
+      m.frequency.push_back(p.frequency[i]);
+      m.amplitude.push_back(X);
+      m.acceleration.push_back(X * w * w / kStandardGravity);
+      m.force_amplitude.push_back(F);
+      m.force_amplitude_ci.push_back(dF);
+      m.force_phase.push_back(phi);
+      m.force_phase_ci.push_back(dphi);
+      // F1 / X = (F / X) e^(i phi) = w^2 m_eff - i w c_eff; intervals to first order.
+      m.effective_mass.push_back(F * c / (X * w * w));
+      m.effective_mass_ci.push_back(std::hypot(c * dF, F * s * dphi) / (X * w * w));
+      m.effective_damping.push_back(-F * s / (X * w));
+      m.effective_damping_ci.push_back(std::hypot(s * dF, F * c * dphi) / (X * w));
+      m.dissipated_power.push_back(p.dissipated_power[i]);
+      m.dissipated_power_ci.push_back(p.dissipated_power_ci[i]);
+      m.periods.push_back(p.periods[i]);
+      m.converged.push_back(p.converged[i]);
+      m.realisations.push_back(p.realisations[i]);
+    }
+  }
+  return m;
+}
+
+std::string check_map(const Deck& deck, int threads, std::optional<Backend> backend) {
+  const std::vector<Deck> runs = map_runs(deck, "runs");
+  double low = runs.front().excitation.motion.amplitude, high = low;
+  std::size_t points = 0;
+  for (const Deck& run : runs) {
+    const double x = run.excitation.motion.amplitude;
+    low = std::min(low, x), high = std::max(high, x);
+    points += run.excitation.frequencies.size();
+    try {
+      build_scene(run, threads, backend);
+    } catch (const InputError& e) {
+      throw InputError(std::string(e.what()) + " (in [map], at amplitude " + number(x) + " m)");
+    }
+  }
+  const MapSpec& m = deck.map;
+  const Vec3 axis = runs.front().excitation.motion.axis;
+  std::ostringstream s;
+  s << "map: " << (m.amplitudes.empty() ? m.accelerations.size() : m.amplitudes.size())
+    << (m.amplitudes.empty() ? " accelerations" : " amplitudes") << " x " << m.frequencies.size()
+    << " frequencies = " << points << " points in " << runs.size()
+    << " runs; prescribed motion along [" << axis.x << ", " << axis.y << ", " << axis.z
+    << "], amplitude " << number(low) << " to " << number(high) << " m\n";
+  return s.str();
+}
+
+RunReport run_map(const Deck& deck, const MapOptions& options) {
+  const std::string path = map_path(deck, options);
+  const std::string folder = runs_folder(path);
+  const std::vector<Deck> runs = map_runs(deck, folder);
+  std::error_code ignored;
+  if (fs::exists(path, ignored) && !options.force)
+    throw InputError(path + ": map file exists; use --force to run the map anew");
+  if (!fs::exists(folder, ignored)) {
+    const fs::path parent = fs::path(folder).parent_path();
+    if (!parent.empty() && !fs::is_directory(parent, ignored))
+      throw InputError(path + ": the folder " + parent.string() + " does not exist");
+    fs::create_directories(folder, ignored);
+  }
+  std::vector<Results> results;
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    const Deck& run = runs[k];
+    const std::string& file = run.output.file;
+    if (options.resume && !options.force && fs::exists(file, ignored)) {
+      Results done = read_results(file);
+      if (done.meta_text["deck"] != run.text)
+        throw InputError(file +
+                         ": a run of another map (the deck changed); run the map anew "
+                         "with --force");
+      results.push_back(std::move(done));
+      continue;
+    }
+    RunOptions o;
+    o.output = file;
+    o.resume = options.resume && fs::exists(file + ".partial", ignored);
+    o.force = options.force;
+    o.quiet = options.quiet;
+    o.threads = options.threads;
+    o.jobs = options.jobs;
+    o.backend = options.backend;
+    if (!options.quiet)
+      std::cerr << "map run " << k + 1 << " of " << runs.size() << ": amplitude "
+                << number(run.excitation.motion.amplitude) << " m -> " << file << "\n";
+    try {
+      run_deck(run, o);
+    } catch (const Interrupted& e) {
+      throw Interrupted(std::string(e.what()) + "; finished map runs are in " + folder +
+                        ", continue the map with pdsim map --resume");
+    } catch (const InputError& e) {
+      if (fs::exists(file, ignored) && !options.resume)
+        throw InputError(std::string(e.what()) +
+                         " (a map run left by an earlier map: continue it with --resume, or "
+                         "run the map anew with --force)");
+      throw;
+    }
+    results.push_back(read_results(file));
+  }
+
+  Results map;
+  map.meta_text = results.front().meta_text;
+  map.meta_numbers = results.front().meta_numbers;
+  map.meta_text["deck"] = deck.text;
+  map.meta_text["deck_path"] = deck.path;
+  for (const char* sum : {"wall_time_s", "particle_steps", "simulated_time_s"}) {
+    double total = 0;
+    for (Results& r : results) total += r.meta_numbers[sum];
+    map.meta_numbers[sum] = total;
+  }
+  map.map = map_rows(runs, results);
+  write_results(path, map, true, true);
+
+  const MapTable& m = map.map;
+  int converged = 0;
+  for (int c : m.converged) converged += c;
+  std::ostringstream s;
+  s << "map: " << m.frequency.size() << " points (" << converged << " converged), " << runs.size()
+    << " runs in " << folder << "; wall time " << number(map.meta_numbers["wall_time_s"]) << " s";
+  return {path, s.str()};
+}
+
+}  // namespace pdsim

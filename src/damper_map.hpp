@@ -1,0 +1,43 @@
+// pdsim map: a damper characterised once under prescribed sinusoidal motion (the deck's [map]
+// grid), so that a host's response can be predicted from it (harmonic balance). Each grid run
+// is a prescribed-motion run of the deck's dampers, written to a file of its own beside the map
+// (resumable as any run), and the map gathers their first force harmonics into /map.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "src/run.hpp"
+
+namespace pdsim {
+
+struct MapOptions {
+  std::string output;  // the map file (default: the deck's output name with "_map.h5")
+  int threads = 0;
+  int jobs = 0;  // fills and frequencies side by side within a run (0 = one per core)
+  std::optional<Backend> backend;
+  bool resume = false;  // keep finished runs, continue an interrupted one
+  bool force = false;   // run every grid point anew
+  bool quiet = false;
+};
+
+// The map's runs, in order: one per amplitude over the map's frequencies, or one per
+// acceleration and frequency (its amplitude a g / w^2). Each is the deck with prescribed motion
+// along its structure's direction (a prescribed deck: its motion's axis), written to `folder`;
+// the frequencies start independently from the settled bed, shared by every run through a bed
+// file. Throws InputError for a deck without [map] or whose host has no one direction of motion
+// (a beam).
+std::vector<Deck> map_runs(const Deck& deck, const std::string& folder);
+
+// /map from the runs' /prescribed tables (results[k] is runs[k]'s).
+MapTable map_rows(const std::vector<Deck>& runs, const std::vector<Results>& results);
+
+// `pdsim check`'s lines on the map, every run's scene built (so that a run that would be refused
+// is refused now, naming its point).
+std::string check_map(const Deck& deck, int threads, std::optional<Backend> backend);
+
+// Runs every grid point not yet finished and writes the map.
+RunReport run_map(const Deck& deck, const MapOptions& options);
+
+}  // namespace pdsim

@@ -1,0 +1,113 @@
+// pdsim map against the mechanics of one ball on a floor shaken sideways (a box of 3 cm, one
+// steel ball of 4 mm, friction 0.3, gravity across the motion). Below 3.5 mu g the ball rolls
+// without slipping: the floor's friction f accelerates it as f = m a_ball and spins it up as
+// f r = (2/5) m r^2 alpha, and rolling (a_ball - a = -alpha r) gives f = (2/7) m a, in phase
+// with the acceleration: an effective mass of 2/7 m and no damping. Well above it the ball slides
+// the whole period: the friction is mu m g against the sliding, a square wave whose first
+// harmonic is 4/pi mu m g.
+#include <doctest/doctest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include "src/damper_map.hpp"
+
+using namespace pdsim;
+namespace fs = std::filesystem;
+
+namespace {
+
+const char* kBallDeck = R"(title = "one ball on a shaken floor"
+[structure]
+kind = "sdof"
+mass = 0.5
+stiffness = 5000.0
+damping_ratio = 0.02
+[[damper]]
+container = { shape = "box", size = [0.03, 0.03, 0.02] }
+particles = { count = 1, diameter = 0.004, density = 7800.0, seed = 3 }
+[contact]
+model = "linear"
+tangential = "history"
+stiffness = 2000.0
+young = 2.0e8
+restitution = 0.5
+friction = 0.3
+[gravity]
+vector = [0.0, 0.0, -9.81]
+[excitation]
+kind = "stepped_sine"
+amplitude = 1.0
+frequencies = [15.0]
+settle = { min_periods = 6, max_periods = 60, batches = 3, realisations = 1 }
+[solver]
+threads = 1
+[map]
+accelerations = [0.1, 3.0]
+frequencies = [15.0, 20.0]
+)";
+
+}  // namespace
+
+TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once it slides") {
+  const fs::path dir = fs::temp_directory_path() / ("pdsim_map_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const Deck deck = parse_deck(kBallDeck, "ball.toml");
+  MapOptions options;
+  options.output = (dir / "ball_map.h5").string();
+  options.quiet = true;
+  options.jobs = 1;
+  const RunReport report = run_map(deck, options);
+  const MapTable m = read_results(report.output).map;
+  REQUIRE(m.frequency.size() == 4);  // 2 accelerations x 2 frequencies
+  const double mass = 7800.0 * 4.0 / 3.0 * kPi * std::pow(0.002, 3), mu = 0.3, g = 9.81;
+  for (std::size_t i = 0; i < m.frequency.size(); ++i) {
+    CAPTURE(m.frequency[i]);
+    CAPTURE(m.acceleration[i]);
+    CHECK(m.converged[i] == 1);
+    const double w = 2 * kPi * m.frequency[i];
+    CHECK(m.amplitude[i] * w * w / kStandardGravity == doctest::Approx(m.acceleration[i]));
+    if (m.acceleration[i] < 3.5 * mu) {
+      // Rolling: the contact springs (a contact time of 1.3 ms against a period of 50-67 ms)
+      // add a little; no sliding, so no loss beyond the integrator's (loss factor < 1e-3).
+      CHECK(m.effective_mass[i] == doctest::Approx(2.0 / 7.0 * mass).epsilon(5e-3));
+      CHECK(std::abs(m.effective_damping[i]) < 1e-3 * w * m.effective_mass[i]);
+    } else {
+      CHECK(m.force_amplitude[i] == doctest::Approx(4 / kPi * mu * mass * g).epsilon(5e-3));
+      CHECK(m.dissipated_power[i] > 0);
+      CHECK(m.effective_damping[i] > 0);
+    }
+  }
+  // A finished map is not overwritten without --force; its runs are kept beside it, and with
+  // --resume a map is made from the finished runs without running them again.
+  CHECK_THROWS_WITH_AS(run_map(deck, options), doctest::Contains("map file exists"), InputError);
+  fs::remove(report.output);
+  options.resume = true;
+  const RunReport again = run_map(deck, options);
+  const MapTable n = read_results(again.output).map;
+  CHECK(n.effective_mass == m.effective_mass);
+  CHECK(n.force_amplitude == m.force_amplitude);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("[map] refuses what it cannot map, naming the key or the reason") {
+  auto refused = [](const std::string& map, const std::string& message) {
+    std::string text = kBallDeck;
+    text = text.substr(0, text.find("[map]")) + map;
+    CAPTURE(map);
+    CHECK_THROWS_WITH_AS(map_runs(parse_deck(text, "ball.toml"), "runs"),
+                         doctest::Contains(message.c_str()), InputError);
+  };
+  refused("", "no [map] table");
+  refused("[map]\nfrequencies = [10.0]\n", "give either amplitudes (m) or accelerations (g)");
+  refused("[map]\namplitudes = [0.001]\naccelerations = [1.0]\nfrequencies = [10.0]\n",
+          "give either amplitudes");
+  refused("[map]\namplitudes = [-0.001]\nfrequencies = [10.0]\n", "map.amplitudes");
+  refused("[map]\namplitudes = [0.001]\n", "map.frequencies");
+  refused("[map]\namplitudes = [0.001]\nfrequencies = [10.0]\nspeed = 1\n", "map.speed");
+  refused(
+      "[map]\namplitudes = [0.001]\nfrequencies = [10.0]\n[sweep]\n\"contact.friction\" = [0.1]\n",
+      "not with a [sweep] table");
+}

@@ -275,6 +275,10 @@ std::vector<char> file_image(const std::string& file, const Results& r, bool com
     GroupWriter(h5file.get(), "/map", file).table(r.map, [](auto& t, auto&& f) {
       map_columns(t, f);
     });
+  if (!r.frf_hb.frequency.empty())
+    GroupWriter(h5file.get(), "/frf_hb", file).table(r.frf_hb, [](auto& t, auto&& f) {
+      hb_columns(t, f);
+    });
   if (!r.periods.frequency.empty())
     GroupWriter(h5file.get(), "/periods", file).table(r.periods, [](auto& t, auto&& f) {
       period_columns(t, f);
@@ -589,6 +593,8 @@ Results read_file(const std::string& file) {
              [&](hid_t, const GroupReader& g) { prescribed_columns(r.prescribed, read_all(g)); });
   read_group(f, "/map", file,
              [&](hid_t, const GroupReader& g) { map_columns(r.map, read_all(g)); });
+  read_group(f, "/frf_hb", file,
+             [&](hid_t, const GroupReader& g) { hb_columns(r.frf_hb, read_all(g)); });
   read_group(f, "/periods", file,
              [&](hid_t, const GroupReader& g) { period_columns(r.periods, read_all(g)); });
   read_group(f, "/energy", file,

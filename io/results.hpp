@@ -217,6 +217,27 @@ void map_columns(T& t, F&& f) {
   f("realisations", t.realisations, "1", "fills behind the point");
 }
 
+// A host's FRF predicted from a damper map by harmonic balance (`pdsim predict`): one row per
+// frequency and branch (every amplitude that balances the force there).
+struct HbTable {
+  std::vector<double> frequency, amplitude, amplitude_ci, phase, effective_mass, effective_damping;
+  std::vector<int> branch, stable;
+};
+template <class T, class F>
+void hb_columns(T& t, F&& f) {
+  f("frequency", t.frequency, "Hz", "excitation frequency");
+  f("branch", t.branch, "1",
+    "the balance's roots at this frequency, from 0 = the lowest amplitude");
+  f("amplitude", t.amplitude, "m", "first-harmonic displacement amplitude of the structure");
+  f("amplitude_ci", t.amplitude_ci, "m",
+    "95 % half-width from the map's intervals, to first order (infinite at a turning point)");
+  f("phase", t.phase, "rad", "x = amplitude sin(angle + phase) against the force F0 sin(angle)");
+  f("stable", t.stable, "1",
+    "1 when the root is stable to slow changes of amplitude (d(X |D(X)|)/dX > 0)");
+  f("effective_mass", t.effective_mass, "kg", "the map's effective mass at this amplitude");
+  f("effective_damping", t.effective_damping, "N s/m", "the map's effective damping here");
+}
+
 struct PeriodTable {  // one row per period run, per frequency and realisation
   std::vector<double> frequency, amplitude, phase, force_amplitude, force_phase, energy_in;
   std::vector<int> realisation, period, stationary;
@@ -329,6 +350,7 @@ struct Results {
   BranchTable branch_means;  // /frf/branch_means
   PrescribedTable prescribed;
   MapTable map;         // /map, written by pdsim map
+  HbTable frf_hb;       // /frf_hb, written by pdsim predict
   PeriodTable periods;  // the per-period harmonics behind /frf or /prescribed
   std::optional<EnergySeries> energy;
   std::optional<ParticleSnapshots> particles;

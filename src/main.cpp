@@ -8,6 +8,7 @@
 #include "src/bench.hpp"
 #include "src/check_report.hpp"
 #include "src/damper_map.hpp"
+#include "src/predict.hpp"
 #include "src/run.hpp"
 #include "src/sweep.hpp"
 #include "structure/structure.hpp"
@@ -93,6 +94,16 @@ int main(int argc, char** argv) {
   map->add_flag("--force", map_options.force, "run every grid point anew, overwriting");
   map->add_flag("--quiet", map_options.quiet, "no progress lines");
 
+  pdsim::PredictOptions predict_options;
+  auto* predict = app.add_subcommand(
+      "predict", "the deck's FRF from a damper map by harmonic balance (every branch)");
+  predict->add_option("deck", deck_path, "input deck (TOML): an SDOF under a force stepped sine")
+      ->required();
+  predict->add_option("--map", predict_options.map, "the map file (pdsim map)")->required();
+  predict->add_option("-o,--output", predict_options.output,
+                      "output file (default: the deck's output name with _hb.h5)");
+  predict->add_flag("--force", predict_options.force, "overwrite an existing output file");
+
   auto* check = app.add_subcommand("check", "validate a deck and print derived quantities");
   check->add_option("deck", deck_path, "input deck (TOML)")->required();
 
@@ -123,6 +134,11 @@ int main(int argc, char** argv) {
     if (*map) {
       map_options.backend = parse_backend(backend);
       const pdsim::RunReport report = pdsim::run_map(deck, map_options);
+      std::cout << "wrote " << report.output << "\n" << report.summary << "\n";
+      return 0;
+    }
+    if (*predict) {
+      const pdsim::RunReport report = pdsim::run_predict(deck, predict_options);
       std::cout << "wrote " << report.output << "\n" << report.summary << "\n";
       return 0;
     }

@@ -1,0 +1,256 @@
+#include "src/predict.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <complex>
+#include <filesystem>
+#include <map>
+#include <sstream>
+
+#include "io/excitation.hpp"
+#include "pdsim_version.hpp"
+#include "src/format.hpp"
+
+namespace pdsim {
+
+namespace {
+
+// Frequencies of a deck and of a map are the same doubles when they are the same list entries;
+// a rounding's worth of difference still names the same one.
+bool same_frequency(double a, double b) {
+  return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b));
+}
+
+constexpr int kScanPoints = 2000;  // log-spaced amplitudes searched for sign changes
+constexpr int kBisections = 80;
+
+}  // namespace
+
+MapInterpolant::MapInterpolant(const MapTable& map) {
+  std::map<double, Row> by_frequency;
+  for (std::size_t i = 0; i < map.frequency.size(); ++i) {
+    const double f = map.frequency[i], x = map.amplitude[i], w = 2 * kPi * f;
+    if (!(f > 0) || !(x > 0) || !std::isfinite(map.effective_mass[i]) ||
+        !std::isfinite(map.effective_damping[i]))
+      throw InputError("the map's row " + std::to_string(i) +
+                       " holds no finite effective mass and damping at a positive frequency and "
+                       "amplitude");
+    Row& r = by_frequency[f];
+    r.frequency = f;
+    r.amplitude.push_back(x);
+    r.real.push_back(w * w * map.effective_mass[i] * x);
+    r.imag.push_back(w * map.effective_damping[i] * x);
+    r.real_ci.push_back(w * w * map.effective_mass_ci[i] * x);
+    r.imag_ci.push_back(w * map.effective_damping_ci[i] * x);
+  }
+  for (auto& [f, r] : by_frequency) {
+    std::vector<std::size_t> order(r.amplitude.size());
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return r.amplitude[a] < r.amplitude[b]; });
+    Row sorted{f, {}, {}, {}, {}, {}};
+    for (std::size_t k : order) {
+      if (!sorted.amplitude.empty() && sorted.amplitude.back() == r.amplitude[k])
+        throw InputError("the map holds amplitude " + number(r.amplitude[k]) + " m twice at " +
+                         number(f) + " Hz");
+      sorted.amplitude.push_back(r.amplitude[k]);
+      sorted.real.push_back(r.real[k]);
+      sorted.imag.push_back(r.imag[k]);
+      sorted.real_ci.push_back(r.real_ci[k]);
+      sorted.imag_ci.push_back(r.imag_ci[k]);
+    }
+    if (sorted.amplitude.size() < 2)
+      throw InputError("the map holds one amplitude at " + number(f) +
+                       " Hz; harmonic balance interpolates between two or more");
+    rows_.push_back(std::move(sorted));
+  }
+  if (rows_.empty()) throw InputError("the map holds no points");
+}
+
+std::pair<std::size_t, double> MapInterpolant::bracket(double frequency) const {
+  for (std::size_t j = 0; j < rows_.size(); ++j) {
+    if (same_frequency(frequency, rows_[j].frequency)) return {j, 0.0};
+    if (j + 1 < rows_.size() && frequency > rows_[j].frequency &&
+        frequency < rows_[j + 1].frequency)
+      return {j, (frequency - rows_[j].frequency) / (rows_[j + 1].frequency - rows_[j].frequency)};
+  }
+  return {rows_.size(), 0.0};  // outside
+}
+
+std::pair<double, double> MapInterpolant::amplitudes(double frequency) const {
+  const auto [j, t] = bracket(frequency);
+  if (j == rows_.size()) return {0.0, 0.0};
+  const Row& a = rows_[j];
+  if (t == 0) return {a.amplitude.front(), a.amplitude.back()};
+  const Row& b = rows_[j + 1];
+  return {std::max(a.amplitude.front(), b.amplitude.front()),
+          std::min(a.amplitude.back(), b.amplitude.back())};
+}
+
+MapInterpolant::Value MapInterpolant::at_row(const Row& r, double x) const {
+  const auto upper = std::upper_bound(r.amplitude.begin(), r.amplitude.end(), x);
+  std::size_t k = static_cast<std::size_t>(upper - r.amplitude.begin());
+  k = std::clamp<std::size_t>(k, 1, r.amplitude.size() - 1) - 1;
+  const double t = (x - r.amplitude[k]) / (r.amplitude[k + 1] - r.amplitude[k]);
+  auto lerp = [&](const std::vector<double>& v) { return v[k] + t * (v[k + 1] - v[k]); };
+  const double w = 2 * kPi * r.frequency;
+  return {lerp(r.real) / (w * w * x), lerp(r.imag) / (w * x), lerp(r.real_ci) / (w * w * x),
+          lerp(r.imag_ci) / (w * x)};
+}
+
+MapInterpolant::Value MapInterpolant::at(double frequency, double amplitude) const {
+  const auto [j, t] = bracket(frequency);
+  const Value a = at_row(rows_.at(j), amplitude);
+  if (t == 0) return a;
+  const Value b = at_row(rows_.at(j + 1), amplitude);
+  auto lerp = [t = t](double u, double v) { return u + t * (v - u); };
+  return {lerp(a.mass, b.mass), lerp(a.damping, b.damping), lerp(a.mass_ci, b.mass_ci),
+          lerp(a.damping_ci, b.damping_ci)};
+}
+
+std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const SdofHost& host,
+                                     double frequency) {
+  const auto [lo, hi] = map.amplitudes(frequency);
+  if (hi <= 0)
+    throw InputError("frequency " + number(frequency) + " Hz is outside the map's frequencies (" +
+                     number(map.lowest_frequency()) + " to " + number(map.highest_frequency()) +
+                     " Hz); extend the map's [map] frequencies");
+  const double w = 2 * kPi * frequency;
+  auto dynamic = [&](const MapInterpolant::Value& v) {
+    return std::complex<double>(host.stiffness - (host.mass + v.mass) * w * w,
+                                w * (host.damping + v.damping));
+  };
+  auto h = [&](double x) { return x * std::abs(dynamic(map.at(frequency, x))) - host.force; };
+  if (h(lo) > 0)
+    throw InputError("at " + number(frequency) +
+                     " Hz the structure's amplitude is below the map's smallest there (" +
+                     number(lo) + " m); extend the map to smaller amplitudes");
+  if (h(hi) < 0)
+    throw InputError("at " + number(frequency) +
+                     " Hz the structure's amplitude is above the map's largest there (" +
+                     number(hi) + " m); extend the map to larger amplitudes");
+  std::vector<HbRoot> roots;
+  const double ratio = std::pow(hi / lo, 1.0 / (kScanPoints - 1));
+  double a = lo, ha = h(lo);
+  for (int k = 1; k < kScanPoints; ++k) {
+    const double b = k == kScanPoints - 1 ? hi : a * ratio, hb = h(b);
+    if ((ha < 0) != (hb < 0)) {
+      double left = a, right = b, hl = ha;
+      for (int n = 0; n < kBisections && right - left > 1e-14 * right; ++n) {
+        const double mid = 0.5 * (left + right), hm = h(mid);
+        if ((hm < 0) == (hl < 0))
+          left = mid, hl = hm;
+        else
+          right = mid;
+      }
+      HbRoot r;
+      r.amplitude = 0.5 * (left + right);
+      r.damper = map.at(frequency, r.amplitude);
+      const std::complex<double> d = dynamic(r.damper);
+      r.phase = -std::arg(d);
+      // Slow amplitude changes grow X where the force outweighs X |D| (h < 0): a root where h
+      // rises is stable, one where it falls (the middle of a jump) is not.
+      const double step = 1e-6 * r.amplitude;
+      const double up = std::min(hi, r.amplitude + step), down = std::max(lo, r.amplitude - step);
+      const double slope = (h(up) - h(down)) / (up - down);
+      r.stable = slope > 0;
+      const double size = std::abs(d);
+      const double h_mass = r.amplitude * (-w * w * d.real() / size);
+      const double h_damping = r.amplitude * (w * d.imag() / size);
+      r.amplitude_ci =
+          std::hypot(h_mass * r.damper.mass_ci, h_damping * r.damper.damping_ci) / std::abs(slope);
+      roots.push_back(r);
+    }
+    a = b, ha = hb;
+  }
+  return roots;
+}
+
+RunReport run_predict(const Deck& deck, const PredictOptions& options) {
+  namespace fs = std::filesystem;
+  const auto started = std::chrono::steady_clock::now();
+  if (deck.structure.kind != StructureKind::sdof)
+    throw InputError(deck.where("structure.kind"), "structure.kind",
+                     "expected \"sdof\" for pdsim predict (a beam's is not yet predicted)");
+  const ExcitationSpec& x = deck.excitation;
+  if (traits(x.kind).moves_containers || !measures_harmonics(x))
+    throw InputError(deck.where("excitation.kind"), "excitation.kind",
+                     "expected \"stepped_sine\" or \"sine\" for pdsim predict");
+  if (x.input != ExcitationInput::force)
+    throw InputError(deck.where("excitation.input"), "excitation.input",
+                     "expected \"force\" for pdsim predict (base excitation is not yet predicted)");
+  if (!fs::exists(options.map)) throw InputError(options.map + ": no such map file");
+  Results source = read_results(options.map);
+  if (source.map.frequency.empty())
+    throw InputError(options.map + ": holds no /map (a file that pdsim map writes)");
+  long particles = 0;
+  for (const DamperSpec& d : deck.dampers) particles += d.particles.count;
+  if (static_cast<long>(source.meta_numbers["particles"]) != particles)
+    throw InputError(options.map + ": a map of " +
+                     std::to_string(static_cast<long>(source.meta_numbers["particles"])) +
+                     " particles; the deck's dampers hold " + std::to_string(particles));
+  const MapInterpolant map(source.map);
+
+  const fs::path run = output_path(deck, RunOptions{});
+  const std::string path = !options.output.empty()
+                               ? options.output
+                               : (run.parent_path() / (run.stem().string() + "_hb.h5")).string();
+  if (fs::exists(path) && !options.force)
+    throw InputError(path + ": output file exists; use --force to overwrite it");
+
+  std::vector<double> frequencies = run_frequencies(x);
+  std::sort(frequencies.begin(), frequencies.end());
+  frequencies.erase(std::unique(frequencies.begin(), frequencies.end()), frequencies.end());
+  const SdofHost host{deck.structure.mass, deck.structure.stiffness, deck.structure.damping,
+                      x.amplitude};
+  Results r;
+  HbTable& t = r.frf_hb;
+  std::vector<std::string> refused;
+  for (double f : frequencies) {
+    std::vector<HbRoot> roots;
+    try {
+      roots = harmonic_balance(map, host, f);
+    } catch (const InputError& e) {
+      refused.push_back(e.what());
+      continue;
+    }
+    for (std::size_t b = 0; b < roots.size(); ++b) {
+      t.frequency.push_back(f);
+      t.branch.push_back(static_cast<int>(b));
+      t.amplitude.push_back(roots[b].amplitude);
+      t.amplitude_ci.push_back(roots[b].amplitude_ci);
+      t.phase.push_back(roots[b].phase);
+      t.stable.push_back(roots[b].stable ? 1 : 0);
+      t.effective_mass.push_back(roots[b].damper.mass);
+      t.effective_damping.push_back(roots[b].damper.damping);
+    }
+  }
+  if (!refused.empty()) {
+    std::string what = options.map + " does not cover the deck's response (nothing written):";
+    for (const std::string& e : refused) what += "\n  " + e;
+    throw InputError(what);
+  }
+  const double wall =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  r.meta_text["deck"] = deck.text;
+  r.meta_text["deck_path"] = deck.path;
+  r.meta_text["title"] = deck.title;
+  r.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
+  r.meta_numbers["wall_time_s"] = wall;
+  write_results(path, r, true, true);
+
+  std::size_t peak = 0, several = 0;
+  for (std::size_t i = 0; i < t.frequency.size(); ++i) {
+    if (t.stable[i] && (!t.stable[peak] || t.amplitude[i] > t.amplitude[peak])) peak = i;
+    if (t.branch[i] == 1) ++several;
+  }
+  std::ostringstream s;
+  s << "harmonic balance from " << options.map << ": " << frequencies.size() << " frequencies, "
+    << several << " with several branches; peak of the stable branches "
+    << number(1e3 * t.amplitude[peak]) << " mm at " << number(t.frequency[peak]) << " Hz; "
+    << number(1e3 * wall) << " ms";
+  return {path, s.str()};
+}
+
+}  // namespace pdsim

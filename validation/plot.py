@@ -7,6 +7,7 @@ Usage:
   validation/plot.py energy OUT.h5 [-o F]
   validation/plot.py prescribed OUT.h5 [MORE.h5 ...] [-o F]
   validation/plot.py bed OUT.h5 [--time S] [--damper K] [-o F]
+  validation/plot.py map MAP.h5 [-o F]
 
 The format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector); the default is
 <kind>.png. Every axis is labelled with its unit; each plot says what its error bars are.
@@ -21,6 +22,8 @@ The format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector); t
   input.
 - prescribed: /prescribed dissipated power (W) and first-harmonic force amplitude (N) against the
   drive frequency, with 95 % intervals, one colour per file.
+- map: a damper map (pdsim map, /map): effective mass (kg) and damping (N s/m) against the
+  motion's amplitude (mm), one curve per frequency, with 95 % intervals.
 - bed: one particle snapshot (output.particles) in 3-D, the container's frame, each sphere to
   scale and coloured by its speed (the snapshot nearest --time, default the last); ParaView
   plays them all (OUT.xdmf).
@@ -142,6 +145,30 @@ def prescribed(args):
     save(figure, args.output)
 
 
+def damper_map(args):
+    m, title = group(args.file, "map")
+    figure, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+    frequencies = np.unique(m["frequency"])
+    for index, f in enumerate(frequencies):
+        rows = m["frequency"] == f
+        order = np.argsort(m["amplitude"][rows])
+        x = 1e3 * m["amplitude"][rows][order]
+        color = plt.cm.viridis(index / max(1, len(frequencies) - 1))
+        for axes, key in ((top, "effective_mass"), (bottom, "effective_damping")):
+            axes.errorbar(x, m[key][rows][order], yerr=m[key + "_ci"][rows][order], fmt="o-",
+                          ms=3, capsize=2, color=color,
+                          label=f"{f:g} Hz" if axes is top else None)
+    top.set_ylabel("effective mass (kg)")
+    bottom.set_ylabel("effective damping (N s/m)")
+    bottom.set_xlabel("motion amplitude (mm)")
+    bottom.set_xscale("log")
+    top.legend(fontsize="x-small", ncol=2)
+    top.set_title(f"{title}: damper map; error bars: 95 % confidence", fontsize="small")
+    for axes in (top, bottom):
+        axes.grid(True, alpha=0.3)
+    save(figure, args.output)
+
+
 def bed(args):
     try:
         with h5py.File(args.file, "r") as h5:
@@ -209,14 +236,16 @@ def main():
     snapshot.add_argument("--time", type=float, help="s; the nearest snapshot (default the last)")
     snapshot.add_argument("--damper", type=int, default=0, help="which damper (default 0)")
     kinds.add_parser("frf", help="amplitude and phase (validation/plot_frf.py)")
-    for sub in (one, ledger, power, snapshot):
+    mapped = kinds.add_parser("map", help="a damper map: effective mass and damping")
+    mapped.add_argument("file")
+    for sub in (one, ledger, power, snapshot, mapped):
         sub.add_argument("-o", "--output", help="image to write: .png, .pdf or .svg")
     args = parser.parse_args()
     args.output = args.output or f"{args.kind}.png"
     if os.path.splitext(args.output)[1].lower() not in FORMATS:
         sys.exit(f"plot.py: {args.output}: the output must end in {', '.join(FORMATS)}")
-    {"timeseries": timeseries, "energy": energy, "prescribed": prescribed, "bed": bed}[
-        args.kind](args)
+    {"timeseries": timeseries, "energy": energy, "prescribed": prescribed, "bed": bed,
+     "map": damper_map}[args.kind](args)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Plot stepped-sine frequency responses (/frf) of pdsim runs, optionally against a measured curve.
 
 Usage: validation/plot_frf.py OUT.h5 [OTHER.h5 ...] [--measured CSV] [--receptance] [--bare]
-                              [-o frf.png]
+                              [--hb HB.h5 ...] [-o frf.png]
 (also `validation/plot.py frf ...`, with the other plots of a result)
 
 Draws two stacked panels sharing the frequency axis (Hz): the first-harmonic displacement
@@ -57,6 +57,8 @@ without /frf (e.g. a prescribed-motion result, /prescribed) is an error (exit st
 force input only; files driven otherwise are an error.
 --bare: the bare structure's analytic response (single-DOF structures under force input, from
 the first file's deck: mass, stiffness and damping), drawn as a thin black line.
+--hb HB.h5: a harmonic-balance prediction (pdsim predict, /frf_hb) over the coupled FRF, a thin
+line through each branch, stable roots as filled squares, unstable ones hollow.
 
 --measured CSV: a digitised measured curve (e.g. Saeki 2002, fig. 5b), plain text, comma
 separated, first line exactly the header `frequency_hz,amplitude_m`, then one point per line
@@ -366,6 +368,32 @@ def print_peak(path, data):
                   f"{at(data['frequency'][higher], data['sweep'][higher])}")
 
 
+def plot_hb(amplitude_axes, phase_axes, path, scale, color):
+    """The harmonic-balance branches of a pdsim predict output: lines through each branch
+    number, stable roots filled, unstable hollow."""
+    try:
+        with h5py.File(path, "r") as h5:
+            if "frf_hb" not in h5:
+                sys.exit(f"plot_frf.py: {path} has no /frf_hb group (a pdsim predict output)")
+            hb = columns(path, h5["frf_hb"], ["frequency", "branch", "amplitude", "phase",
+                                             "stable"])
+    except OSError as error:
+        sys.exit(f"plot_frf.py: cannot read {path}: {error}")
+    label = f"harmonic balance ({os.path.basename(path)})"
+    for branch in np.unique(hb["branch"]):
+        rows = hb["branch"] == branch
+        order = np.argsort(hb["frequency"][rows])
+        f = hb["frequency"][rows][order]
+        for axes, values, s in ((amplitude_axes, hb["amplitude"], scale),
+                                (phase_axes, hb["phase"], 1)):
+            v = values[rows][order] * s
+            stable = hb["stable"][rows][order] == 1
+            axes.plot(f, v, "-", lw=0.8, color=color,
+                      label=label if axes is amplitude_axes and branch == 0 else None)
+            axes.plot(f[stable], v[stable], "s", ms=3.5, color=color)
+            axes.plot(f[~stable], v[~stable], "s", ms=3.5, mfc="none", color=color)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="plot_frf.py", description=__doc__.splitlines()[0])
     parser.add_argument("files", nargs="+", help="pdsim HDF5 outputs with an /frf group")
@@ -374,6 +402,9 @@ def main(argv=None):
                         help="amplitude per newton of drive, m/N (force input only)")
     parser.add_argument("--bare", action="store_true",
                         help="draw the bare single-DOF structure's analytic response")
+    parser.add_argument("--hb", action="append", default=[],
+                        help="a pdsim predict output (/frf_hb): its branches over the FRF, "
+                             "stable filled, unstable hollow")
     parser.add_argument("-o", "--output", default="frf.png",
                         help="image to write; .png (200 dpi), .pdf or .svg")
     args = parser.parse_args(argv)
@@ -432,6 +463,9 @@ def main(argv=None):
             amplitude_axes.plot(f, amplitude * scale, "x", ms=4, color=color)
             phase_axes.plot(f, phase, "x", ms=4, color=color)
             shown.add(DISAGREE)
+    for index, path in enumerate(args.hb):
+        plot_hb(amplitude_axes, phase_axes, path,
+                1e6 / force_amplitude(path) if args.receptance else 1e3, f"C{(index + 5) % 10}")
     if measured is not None:
         measured_scale = 1e6 / force_amplitude(args.files[0]) if args.receptance else 1e3
         amplitude_axes.plot(measured[0], measured[1] * measured_scale, "ks--", mfc="none",

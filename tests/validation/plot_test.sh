@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# validation/plot.py on a small stepped sine, a free decay with its energy ledger and a
-# prescribed motion with particle snapshots: every kind of plot, as PNG and as PDF, must be
+# validation/plot.py on a small stepped sine, a free decay with its energy ledger, a
+# prescribed motion with particle snapshots, and a damper map with the FRF predicted from it
+# over the coupled one: every kind of plot, as PNG and as PDF, must be
 # written and non-empty. Then an ensemble FRF written here (two sweeps, fills in branches, a
 # point of several branches, a point that is not a result above the peak) and an older FRF
 # file: plot_frf.py must draw them and print their peaks as the /frf attributes (or the
@@ -21,6 +22,11 @@ sed -e 's/^kind = "stepped_sine"/kind = "free_decay"\ninitial_displacement = 0.0
     "$root/tests/decks/tiny_stepped_sine.toml" > decay.toml
 "$pdsim" run decay.toml -o decay.h5 --quiet > /dev/null
 "$pdsim" run "$root/tests/decks/tiny_prescribed.toml" -o box.h5 --quiet > /dev/null
+# A damper map of the tiny deck and the deck's FRF predicted from it.
+cp "$root/tests/decks/tiny_stepped_sine.toml" mapped.toml
+printf '[map]\namplitudes = [5e-5, 1e-3, 1e-2]\nfrequencies = [15.0, 16.0]\n' >> mapped.toml
+"$pdsim" map mapped.toml -o map.h5 --quiet > /dev/null
+"$pdsim" predict mapped.toml --map map.h5 -o hb.h5 > /dev/null
 
 for format in png pdf; do
   "${plot[@]}" frf frf.h5 --receptance --bare -o "frf.$format" > "frf.$format.txt"
@@ -29,7 +35,9 @@ for format in png pdf; do
   "${plot[@]}" timeseries decay.h5 -o "decay.$format"
   "${plot[@]}" prescribed box.h5 -o "prescribed.$format"
   "${plot[@]}" bed box.h5 --time 0.05 -o "bed.$format"
-  for kind in frf timeseries energy prescribed decay bed; do
+  "${plot[@]}" map map.h5 -o "map.$format"
+  "${plot[@]}" frf frf.h5 --hb hb.h5 -o "hb.$format" > /dev/null
+  for kind in frf timeseries energy prescribed decay bed map hb; do
     [ -s "$kind.$format" ] || { echo "$kind.$format is missing or empty" >&2; exit 1; }
   done
 done

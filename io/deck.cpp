@@ -759,6 +759,14 @@ MapSpec read_map(const Table& t) {
     t.missing("frequencies", "a table { start, stop, step } or an array (Hz)", why);
   m.frequencies = read_frequencies(t);
   m.duration = t.real("duration", "a positive number (s)", positive).value_or(0);
+  for (const auto& [key, values] :
+       {std::pair{"amplitudes", m.amplitudes}, std::pair{"accelerations", m.accelerations},
+        std::pair{"frequencies", m.frequencies}}) {
+    std::vector<double> sorted = values;
+    std::sort(sorted.begin(), sorted.end());
+    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
+      t.fail(key, "expected each value once (a grid point runs once)");
+  }
   const std::size_t points = (m.amplitudes.size() + m.accelerations.size()) * m.frequencies.size();
   if (points > kMaxFrequencies)
     t.fail("frequencies", "expected at most " + std::to_string(kMaxFrequencies) +

@@ -1,10 +1,13 @@
 #include "src/damper_map.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <sstream>
 
+#include "pdsim_version.hpp"
 #include "src/format.hpp"
 
 namespace pdsim {
@@ -12,13 +15,6 @@ namespace pdsim {
 namespace fs = std::filesystem;
 
 namespace {
-
-// The map file: --output, else the deck's output name with "_map.h5".
-std::string map_path(const Deck& deck, const MapOptions& options) {
-  if (!options.output.empty()) return options.output;
-  const fs::path run = output_path(deck, RunOptions{});
-  return (run.parent_path() / (run.stem().string() + "_map.h5")).string();
-}
 
 // The runs' folder beside the map: "OUT_map.h5" -> "OUT_map_runs".
 std::string runs_folder(const std::string& map) {
@@ -157,7 +153,7 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
 }
 
 RunReport run_map(const Deck& deck, const MapOptions& options) {
-  const std::string path = map_path(deck, options);
+  const std::string path = options.output.empty() ? output_beside(deck, "_map.h5") : options.output;
   const std::string folder = runs_folder(path);
   const std::vector<Deck> runs = map_runs(deck, folder);
   std::error_code ignored;
@@ -169,6 +165,8 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
       throw InputError(path + ": the folder " + parent.string() + " does not exist");
     fs::create_directories(folder, ignored);
   }
+  // The bed the runs share is settled anew with them.
+  if (options.force && deck.bed.file.empty()) fs::remove(fs::path(folder) / "bed.h5", ignored);
   std::vector<Results> results;
   for (std::size_t k = 0; k < runs.size(); ++k) {
     const Deck& run = runs[k];
@@ -199,7 +197,7 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
       throw Interrupted(std::string(e.what()) + "; finished map runs are in " + folder +
                         ", continue the map with pdsim map --resume");
     } catch (const InputError& e) {
-      if (fs::exists(file, ignored) && !options.resume)
+      if (fs::exists(file, ignored) && !options.resume && !options.force)
         throw InputError(std::string(e.what()) +
                          " (a map run left by an earlier map: continue it with --resume, or "
                          "run the map anew with --force)");
@@ -213,6 +211,11 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   map.meta_numbers = results.front().meta_numbers;
   map.meta_text["deck"] = deck.text;
   map.meta_text["deck_path"] = deck.path;
+  map.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
+  map.meta_text.erase("coupling");  // a prescribed motion couples nothing
+  for (Results& r : results)
+    map.meta_numbers["fills_used"] =
+        std::max(map.meta_numbers["fills_used"], r.meta_numbers["fills_used"]);
   for (const char* sum : {"wall_time_s", "particle_steps", "simulated_time_s"}) {
     double total = 0;
     for (Results& r : results) total += r.meta_numbers[sum];

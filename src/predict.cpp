@@ -6,6 +6,7 @@
 #include <complex>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "io/excitation.hpp"
@@ -71,6 +72,8 @@ MapInterpolant::MapInterpolant(const MapTable& map) {
 std::pair<std::size_t, double> MapInterpolant::bracket(double frequency) const {
   for (std::size_t j = 0; j < rows_.size(); ++j) {
     if (same_frequency(frequency, rows_[j].frequency)) return {j, 0.0};
+    if (j + 1 < rows_.size() && same_frequency(frequency, rows_[j + 1].frequency))
+      return {j + 1, 0.0};
     if (j + 1 < rows_.size() && frequency > rows_[j].frequency &&
         frequency < rows_[j + 1].frequency)
       return {j, (frequency - rows_[j].frequency) / (rows_[j + 1].frequency - rows_[j].frequency)};
@@ -116,6 +119,10 @@ std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const SdofHost& 
     throw InputError("frequency " + number(frequency) + " Hz is outside the map's frequencies (" +
                      number(map.lowest_frequency()) + " to " + number(map.highest_frequency()) +
                      " Hz); extend the map's [map] frequencies");
+  if (lo >= hi)
+    throw InputError("at " + number(frequency) +
+                     " Hz the map's amplitudes at the frequencies either side do not overlap; "
+                     "map more frequencies or a wider range of accelerations");
   const double w = 2 * kPi * frequency;
   auto dynamic = [&](const MapInterpolant::Value& v) {
     return std::complex<double>(host.stiffness - (host.mass + v.mass) * w * w,
@@ -192,10 +199,7 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
                      " particles; the deck's dampers hold " + std::to_string(particles));
   const MapInterpolant map(source.map);
 
-  const fs::path run = output_path(deck, RunOptions{});
-  const std::string path = !options.output.empty()
-                               ? options.output
-                               : (run.parent_path() / (run.stem().string() + "_hb.h5")).string();
+  const std::string path = options.output.empty() ? output_beside(deck, "_hb.h5") : options.output;
   if (fs::exists(path) && !options.force)
     throw InputError(path + ": output file exists; use --force to overwrite it");
 
@@ -240,16 +244,21 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   r.meta_numbers["wall_time_s"] = wall;
   write_results(path, r, true, true);
 
-  std::size_t peak = 0, several = 0;
+  std::optional<std::size_t> peak;  // the highest stable root
+  std::size_t several = 0;
   for (std::size_t i = 0; i < t.frequency.size(); ++i) {
-    if (t.stable[i] && (!t.stable[peak] || t.amplitude[i] > t.amplitude[peak])) peak = i;
+    if (t.stable[i] && (!peak || t.amplitude[i] > t.amplitude[*peak])) peak = i;
     if (t.branch[i] == 1) ++several;
   }
   std::ostringstream s;
   s << "harmonic balance from " << options.map << ": " << frequencies.size() << " frequencies, "
-    << several << " with several branches; peak of the stable branches "
-    << number(1e3 * t.amplitude[peak]) << " mm at " << number(t.frequency[peak]) << " Hz; "
-    << number(1e3 * wall) << " ms";
+    << several << " with several branches; ";
+  if (peak)
+    s << "peak of the stable branches " << number(1e3 * t.amplitude[*peak]) << " mm at "
+      << number(t.frequency[*peak]) << " Hz";
+  else
+    s << "no stable root";
+  s << "; " << number(1e3 * wall) << " ms";
   return {path, s.str()};
 }
 

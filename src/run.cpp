@@ -23,6 +23,11 @@ std::string output_path(const Deck& deck, const RunOptions& options) {
   return std::filesystem::path(deck.path).stem().string() + ".h5";
 }
 
+std::string output_beside(const Deck& deck, const std::string& suffix) {
+  const std::filesystem::path run = output_path(deck, RunOptions{});
+  return (run.parent_path() / (run.stem().string() + suffix)).string();
+}
+
 namespace {
 
 // The first fill's scene, how to build any other fill's (fill seeds seed + r of every damper),

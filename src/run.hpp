@@ -29,6 +29,8 @@ struct RunReport {
 
 // Output path: --output, else output.file, else the deck's name with ".h5".
 std::string output_path(const Deck& deck, const RunOptions& options);
+// A file beside the deck's output named for it: "OUT.h5" -> "OUT<suffix>" ("_map.h5").
+std::string output_beside(const Deck& deck, const std::string& suffix);
 
 // Runs the deck to completion and writes its results. Throws InputError for user errors
 // (existing output without --force, resume mismatch) and SimulationError for blow-ups.

@@ -106,6 +106,7 @@ TEST_CASE("[map] refuses what it cannot map, naming the key or the reason") {
           "give either amplitudes");
   refused("[map]\namplitudes = [-0.001]\nfrequencies = [10.0]\n", "map.amplitudes");
   refused("[map]\namplitudes = [0.001]\n", "map.frequencies");
+  refused("[map]\namplitudes = [0.001, 0.001]\nfrequencies = [10.0]\n", "expected each value once");
   refused("[map]\namplitudes = [0.001]\nfrequencies = [10.0]\nspeed = 1\n", "map.speed");
   refused(
       "[map]\namplitudes = [0.001]\nfrequencies = [10.0]\n[sweep]\n\"contact.friction\" = [0.1]\n",

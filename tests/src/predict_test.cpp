@@ -90,6 +90,23 @@ TEST_CASE(
   CHECK_THROWS_WITH_AS(harmonic_balance(map, host, 25.0),
                        doctest::Contains("outside the map's frequencies (10 to 20 Hz)"),
                        InputError);
+  // Amplitudes that do not overlap between two map frequencies (an acceleration grid spread
+  // too thin): nothing to read between them.
+  MapTable apart = synthetic_map(
+      {10}, {1e-3, 2e-3}, [](double, double) { return 0.0; }, [](double, double) { return 1.0; });
+  const MapTable high = synthetic_map(
+      {20}, {1e-4, 2e-4}, [](double, double) { return 0.0; }, [](double, double) { return 1.0; });
+  auto join = [&](std::vector<double>& a, const std::vector<double>& b) {
+    a.insert(a.end(), b.begin(), b.end());
+  };
+  join(apart.frequency, high.frequency);
+  join(apart.amplitude, high.amplitude);
+  join(apart.effective_mass, high.effective_mass);
+  join(apart.effective_damping, high.effective_damping);
+  join(apart.effective_mass_ci, high.effective_mass_ci);
+  join(apart.effective_damping_ci, high.effective_damping_ci);
+  CHECK_THROWS_WITH_AS(harmonic_balance(MapInterpolant(apart), kHost, 15.0),
+                       doctest::Contains("do not overlap"), InputError);
 }
 
 TEST_CASE("harmonic balance: a softening load has three amplitudes below resonance") {

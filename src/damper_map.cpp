@@ -7,6 +7,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "io/excitation.hpp"
 #include "pdsim_version.hpp"
 #include "src/format.hpp"
 
@@ -64,7 +65,7 @@ std::vector<Deck> map_runs(const Deck& deck, const std::string& folder) {
                      "and frequencies); see io/decks.md");
   if (deck.dampers.empty()) throw InputError(deck.path + ": the deck has no [[damper]] to map");
   Vec3 axis;
-  if (deck.excitation.kind == ExcitationKind::prescribed)
+  if (traits(deck.excitation.kind).moves_containers)
     axis = deck.excitation.motion.axis;
   else if (deck.structure.kind == StructureKind::sdof)
     axis = deck.structure.direction;
@@ -182,7 +183,7 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
     }
     RunOptions o;
     o.output = file;
-    o.resume = options.resume && fs::exists(file + ".partial", ignored);
+    o.resume = options.resume && !options.force && fs::exists(file + ".partial", ignored);
     o.force = options.force;
     o.quiet = options.quiet;
     o.threads = options.threads;

@@ -745,7 +745,7 @@ BedSpec read_bed(const std::optional<Table>& t, bool gravity_on_particles) {
 
 MapSpec read_map(const Table& t) {
   MapSpec m;
-  t.allow_only({"amplitudes", "accelerations", "frequencies", "duration"});
+  t.allow_only({"amplitudes", "accelerations", "frequencies", "duration", "steps"});
   const std::string why = "in [map]";
   if (t.has("amplitudes") == t.has("accelerations"))
     t.fail(t.has("amplitudes") ? "accelerations" : "amplitudes",
@@ -759,6 +759,7 @@ MapSpec read_map(const Table& t) {
     t.missing("frequencies", "a table { start, stop, step } or an array (Hz)", why);
   m.frequencies = read_frequencies(t);
   m.duration = t.real("duration", "a positive number (s)", positive).value_or(0);
+  m.steps = static_cast<MapSteps>(t.choice("steps", {"independent", "up", "both"}).value_or(0));
   for (const auto& [key, values] :
        {std::pair{"amplitudes", m.amplitudes}, std::pair{"accelerations", m.accelerations},
         std::pair{"frequencies", m.frequencies}}) {

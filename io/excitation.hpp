@@ -71,6 +71,13 @@ inline std::vector<double> run_frequencies(const ExcitationSpec& x) {
   return x.kind == ExcitationKind::sine ? std::vector<double>{x.frequency} : x.frequencies;
 }
 
+// The drive amplitude of point k: a prescribed motion's (m), else excitation.amplitude (N, m or
+// m/s^2 as excitation.input says).
+inline double point_amplitude(const ExcitationSpec& x, std::size_t k) {
+  if (!x.amplitudes.empty()) return x.amplitudes.at(k);
+  return traits(x.kind).moves_containers ? x.motion.amplitude : x.amplitude;
+}
+
 // The deck key those frequencies came from, for messages; `list_given`: the deck has
 // excitation.frequencies.
 inline const char* frequency_key(const ExcitationSpec& x, bool list_given) {

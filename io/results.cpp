@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 #include <variant>
 
@@ -709,6 +710,15 @@ OutputLock::~OutputLock() {
 Results read_results(const std::string& path) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   return read_file(path);
+}
+
+void append_rows(MapTable& to, const MapTable& from) {
+  map_columns(to, [&](const char* name, auto& into, const char*, const char*) {
+    map_columns(from, [&](const char* other, const auto& rows, const char*, const char*) {
+      if constexpr (std::is_same_v<std::decay_t<decltype(into)>, std::decay_t<decltype(rows)>>)
+        if (std::string(name) == other) into.insert(into.end(), rows.begin(), rows.end());
+    });
+  });
 }
 
 }  // namespace pdsim

@@ -157,14 +157,17 @@ struct FrfPeak {
 };
 FrfPeak frf_peak(const FrfTable& frf, const FillTable& fills);
 
-struct PrescribedTable {  // one row per prescribed-motion frequency
-  std::vector<double> frequency, dissipated_power, dissipated_power_ci, force_amplitude,
+struct PrescribedTable {  // one row per prescribed-motion point
+  std::vector<int> sweep;
+  std::vector<double> frequency, amplitude, dissipated_power, dissipated_power_ci, force_amplitude,
       force_amplitude_ci, force_phase, force_phase_ci;
   std::vector<int> periods, periods_discarded, converged, realisations, interval;
 };
 template <class T, class F>
 void prescribed_columns(T& t, F&& f) {
   f("frequency", t.frequency, "Hz", "frequency of the container motion");
+  f("sweep", t.sweep, "1", "+1 on the way up (frequency or amplitude), -1 on the way down");
+  f("amplitude", t.amplitude, "m", "amplitude X of the container motion");
   f("dissipated_power", t.dissipated_power, "W",
     "mean power the container puts into the particles over the stationary periods");
   f("dissipated_power_ci", t.dissipated_power_ci, "W", "95 % half-width of dissipated_power");
@@ -189,12 +192,15 @@ struct MapTable {
   std::vector<double> frequency, amplitude, acceleration, force_amplitude, force_amplitude_ci,
       force_phase, force_phase_ci, effective_mass, effective_mass_ci, effective_damping,
       effective_damping_ci, dissipated_power, dissipated_power_ci;
-  std::vector<int> periods, converged, realisations;
+  std::vector<int> sweep, periods, converged, realisations;
 };
 template <class T, class F>
 void map_columns(T& t, F&& f) {
   f("frequency", t.frequency, "Hz", "frequency of the container motion");
   f("amplitude", t.amplitude, "m", "amplitude X of the container motion");
+  f("sweep", t.sweep, "1",
+    "0: the point ran from the settled bed; +1: amplitudes stepped up to it, -1: back down to it "
+    "(the bed carried from the point before)");
   f("acceleration", t.acceleration, "g", "peak acceleration X w^2 of the motion, in 9.80665 m/s^2");
   f("force_amplitude", t.force_amplitude, "N",
     "first harmonic |F1| of the particles' force on the container along the motion");
@@ -219,15 +225,21 @@ void map_columns(T& t, F&& f) {
 
 // A host's FRF predicted from a damper map by harmonic balance (`pdsim predict`): one row per
 // frequency and branch (every amplitude that balances the force there).
+// Appends `from`'s rows to `to`'s (one map of the points of several).
+void append_rows(MapTable& to, const MapTable& from);
+
 struct HbTable {
   std::vector<double> frequency, amplitude, amplitude_ci, phase, effective_mass, effective_damping;
-  std::vector<int> branch, stable;
+  std::vector<int> sweep, branch, stable;
 };
 template <class T, class F>
 void hb_columns(T& t, F&& f) {
   f("frequency", t.frequency, "Hz", "excitation frequency");
+  f("sweep", t.sweep, "1",
+    "the map's rows the root is from: 0 its points from the settled bed, +1 its amplitudes "
+    "stepped up, -1 stepped down");
   f("branch", t.branch, "1",
-    "the balance's roots at this frequency, from 0 = the lowest amplitude");
+    "the balance's roots at this frequency and sweep, from 0 = the lowest amplitude");
   f("amplitude", t.amplitude, "m", "first-harmonic displacement amplitude of the structure");
   f("amplitude_ci", t.amplitude_ci, "m",
     "95 % half-width from the map's intervals, to first order (infinite at a turning point)");
@@ -323,6 +335,8 @@ inline constexpr MetaAttribute kMetaAttributes[] = {
     {"bed", true},
     {"failure", true},
     {"bed_fingerprint", true},
+    {"damper", true},
+    {"maps", true},
     {"threads", false},
     {"jobs", false},
     {"dt", false},

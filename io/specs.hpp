@@ -79,6 +79,8 @@ struct ExcitationSpec {
   std::vector<double> frequencies;  // Hz, in the order they are run (prescribed: never empty)
   std::vector<int> sweeps;          // per frequency: +1 sweeping up, -1 down (direction "both":
                                     // the list up, then down from the top again)
+  std::vector<double> amplitudes;   // per frequency when the points' amplitudes differ (pdsim
+                                    // map's amplitude steps), else `amplitude` / motion.amplitude
   SettleSpec settle;
   FrequencyStart start = FrequencyStart::predicted;  // stepped_sine (prescribed: carried)
   double frequency = 0;                              // Hz, `sine`
@@ -121,11 +123,15 @@ struct OutputSpec {
 // A damper map, the [map] table (`pdsim map`): the deck's dampers under prescribed sinusoidal
 // motion along the structure's direction over a grid of motion amplitudes (or peak
 // accelerations) and frequencies.
+// How a map's amplitudes follow each other at one frequency: each point from the settled bed, or
+// stepped up (and back down) with the bed carried from one amplitude to the next.
+enum class MapSteps { independent, up, both };
 struct MapSpec {
   std::vector<double> amplitudes;     // m; or
   std::vector<double> accelerations;  // in units of kStandardGravity
   std::vector<double> frequencies;    // Hz
   double duration = 0;                // s per point; 0 = until the steady state (excitation.settle)
+  MapSteps steps = MapSteps::independent;
   bool given() const { return !frequencies.empty(); }
 };
 constexpr double kStandardGravity = 9.80665;  // m/s^2, the unit of [map] accelerations

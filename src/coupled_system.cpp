@@ -438,10 +438,11 @@ double CoupledSystem::settle_step(double dt) {
 
 ContainerKinematics CoupledSystem::container_now(std::size_t k) const {
   if (prescribed_) {
-    const MotionSpec& m = *prescribed_;
-    ContainerKinematics c =
-        translating(m.amplitude * std::sin(drive_.angle(time_)) * m.axis,
-                    m.amplitude * drive_.omega * std::cos(drive_.angle(time_)) * m.axis);
+    // The drive holds the point's amplitude (pdsim map steps it at one frequency).
+    const Vec3 axis = prescribed_->axis;
+    const double x = drive_.amplitude;
+    ContainerKinematics c = translating(x * std::sin(drive_.angle(time_)) * axis,
+                                        x * drive_.omega * std::cos(drive_.angle(time_)) * axis);
     set_axes(c, orientation(k));
     return c;
   }

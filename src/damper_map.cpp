@@ -9,6 +9,7 @@
 
 #include "io/excitation.hpp"
 #include "pdsim_version.hpp"
+#include "src/bed_file.hpp"
 #include "src/format.hpp"
 
 namespace pdsim {
@@ -23,23 +24,26 @@ std::string runs_folder(const std::string& map) {
   return (p.parent_path() / (p.stem().string() + "_runs")).string();
 }
 
-// The deck's dampers moved along `axis` by X sin(2 pi f t) at each of `frequencies`.
-Deck prescribed_run(const Deck& deck, const Vec3& axis, double amplitude,
-                    const std::vector<double>& frequencies, const std::string& file,
-                    const std::string& label) {
+// The deck's dampers moved along `axis` by X sin(2 pi f t) at the points (frequencies[k],
+// amplitudes[k]); `stepped`: each fill carries its bed from one point to the next (sweeps[k]
+// +1 up, -1 down), else every point starts from the settled bed.
+Deck prescribed_run(const Deck& deck, const Vec3& axis, const std::vector<double>& frequencies,
+                    const std::vector<double>& amplitudes, const std::vector<int>& sweeps,
+                    bool stepped, const std::string& file, const std::string& label) {
   Deck d = deck;
   ExcitationSpec& x = d.excitation;
   const SettleSpec settle = deck.excitation.settle;
   x = ExcitationSpec{};
   x.kind = ExcitationKind::prescribed;
   x.motion.axis = axis;
-  x.motion.amplitude = amplitude;
+  x.motion.amplitude = amplitudes.front();
   x.motion.frequency = frequencies.front();
   x.frequencies = frequencies;
-  x.sweeps.assign(frequencies.size(), 1);
+  x.sweeps = sweeps;
+  if (stepped) x.amplitudes = amplitudes;
   x.settle = settle;
   x.duration = deck.map.duration;
-  x.start = FrequencyStart::independent;  // every point from the settled bed
+  x.start = stepped ? FrequencyStart::carried : FrequencyStart::independent;
   d.structure = StructureSpec{};
   d.map = MapSpec{};
   d.output.file = file;
@@ -50,9 +54,24 @@ Deck prescribed_run(const Deck& deck, const Vec3& axis, double amplitude,
   std::ostringstream note;
   note.precision(17);
   note << "\n# pdsim map: " << label << ": prescribed motion along [" << axis.x << ", " << axis.y
-       << ", " << axis.z << "], amplitude " << amplitude << " m\n";
-  d.text += note.str();
+       << ", " << axis.z << "], ";
+  if (stepped) {
+    note << "at " << frequencies.front() << " Hz, amplitudes (m, in this order)";
+    for (double a : amplitudes) note << " " << a;
+  } else {
+    note << "amplitude " << amplitudes.front() << " m";
+  }
+  d.text += note.str() + "\n";
   return d;
+}
+
+// The map's amplitudes at frequency f, ascending (m).
+std::vector<double> amplitudes_at(const MapSpec& m, double f) {
+  std::vector<double> a = m.amplitudes;
+  const double w = 2 * kPi * f;
+  for (double g : m.accelerations) a.push_back(g * kStandardGravity / (w * w));
+  std::sort(a.begin(), a.end());
+  return a;
 }
 
 }  // namespace
@@ -73,25 +92,48 @@ std::vector<Deck> map_runs(const Deck& deck, const std::string& folder) {
     throw InputError(deck.path +
                      ": [map] needs one direction of motion: an SDOF structure's direction or a "
                      "prescribed motion's axis (a beam's dampers move along its mode shapes)");
-  std::vector<Deck> runs;
   auto file = [&](std::size_t k) {
     char name[32];
     std::snprintf(name, sizeof name, "m%03zu.h5", k + 1);
     return (fs::path(folder) / name).string();
   };
-  const std::size_t count =
-      m.amplitudes.empty() ? m.accelerations.size() * m.frequencies.size() : m.amplitudes.size();
-  for (std::size_t k = 0; k < count; ++k) {
-    const std::string label = "run " + std::to_string(k + 1) + " of " + std::to_string(count);
-    if (!m.amplitudes.empty()) {
-      runs.push_back(prescribed_run(deck, axis, m.amplitudes[k], m.frequencies, file(k), label));
-    } else {
-      const double a = m.accelerations[k / m.frequencies.size()];
-      const double f = m.frequencies[k % m.frequencies.size()];
-      const double w = 2 * kPi * f;
-      runs.push_back(
-          prescribed_run(deck, axis, a * kStandardGravity / (w * w), {f}, file(k), label));
+  // One run per amplitude over the frequencies, or per acceleration and frequency; stepped, one
+  // per frequency through its amplitudes.
+  struct Points {
+    std::vector<double> frequencies, amplitudes;
+    std::vector<int> sweeps;
+  };
+  std::vector<Points> points;
+  if (m.steps != MapSteps::independent) {
+    for (double f : m.frequencies) {
+      Points& p = points.emplace_back();
+      p.amplitudes = amplitudes_at(m, f);
+      p.sweeps.assign(p.amplitudes.size(), 1);
+      if (m.steps == MapSteps::both) {  // back down from the top, as a frequency sweep "both"
+        const std::vector<double> up = p.amplitudes;
+        p.amplitudes.insert(p.amplitudes.end(), up.rbegin(), up.rend());
+        p.sweeps.resize(p.amplitudes.size(), -1);
+      }
+      p.frequencies.assign(p.amplitudes.size(), f);
     }
+  } else if (!m.amplitudes.empty()) {
+    for (double a : m.amplitudes)
+      points.push_back({m.frequencies, std::vector<double>(m.frequencies.size(), a),
+                        std::vector<int>(m.frequencies.size(), 1)});
+  } else {
+    for (double g : m.accelerations)
+      for (double f : m.frequencies) {
+        const double w = 2 * kPi * f;
+        points.push_back({{f}, {g * kStandardGravity / (w * w)}, {1}});
+      }
+  }
+  std::vector<Deck> runs;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const std::string label =
+        "run " + std::to_string(k + 1) + " of " + std::to_string(points.size());
+    const Points& p = points[k];
+    runs.push_back(prescribed_run(deck, axis, p.frequencies, p.amplitudes, p.sweeps,
+                                  m.steps != MapSteps::independent, file(k), label));
   }
   return runs;
 }
@@ -99,10 +141,11 @@ std::vector<Deck> map_runs(const Deck& deck, const std::string& folder) {
 MapTable map_rows(const std::vector<Deck>& runs, const std::vector<Results>& results) {
   MapTable m;
   for (std::size_t k = 0; k < runs.size(); ++k) {
-    const double X = runs[k].excitation.motion.amplitude;
+    const bool stepped = runs[k].excitation.start == FrequencyStart::carried;
     const PrescribedTable& p = results[k].prescribed;
     for (std::size_t i = 0; i < p.frequency.size(); ++i) {
-      const double w = 2 * kPi * p.frequency[i];
+      const double w = 2 * kPi * p.frequency[i], X = p.amplitude[i];
+      m.sweep.push_back(stepped ? p.sweep[i] : 0);
       const double F = p.force_amplitude[i], dF = p.force_amplitude_ci[i];
       const double phi = p.force_phase[i], dphi = p.force_phase_ci[i];
       const double c = std::cos(phi), s = std::sin(phi);
@@ -134,7 +177,10 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
   std::size_t points = 0;
   for (const Deck& run : runs) {
     const double x = run.excitation.motion.amplitude;
-    low = std::min(low, x), high = std::max(high, x);
+    for (std::size_t k = 0; k < run.excitation.frequencies.size(); ++k) {
+      const double a = point_amplitude(run.excitation, k);
+      low = std::min(low, a), high = std::max(high, a);
+    }
     points += run.excitation.frequencies.size();
     try {
       build_scene(run, threads, backend);
@@ -149,7 +195,11 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
     << (m.amplitudes.empty() ? " accelerations" : " amplitudes") << " x " << m.frequencies.size()
     << " frequencies = " << points << " points in " << runs.size()
     << " runs; prescribed motion along [" << axis.x << ", " << axis.y << ", " << axis.z
-    << "], amplitude " << number(low) << " to " << number(high) << " m\n";
+    << "], amplitude " << number(low) << " to " << number(high) << " m"
+    << (m.steps == MapSteps::both ? ", stepped up and down at each frequency"
+        : m.steps == MapSteps::up ? ", stepped up at each frequency"
+                                  : ", each point from the settled bed")
+    << "\n";
   return s.str();
 }
 
@@ -189,9 +239,14 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
     o.threads = options.threads;
     o.jobs = options.jobs;
     o.backend = options.backend;
-    if (!options.quiet)
-      std::cerr << "map run " << k + 1 << " of " << runs.size() << ": amplitude "
-                << number(run.excitation.motion.amplitude) << " m -> " << file << "\n";
+    if (!options.quiet) {
+      const ExcitationSpec& x = run.excitation;
+      std::cerr << "map run " << k + 1 << " of " << runs.size() << ": "
+                << (x.amplitudes.empty()
+                        ? "amplitude " + number(x.motion.amplitude) + " m"
+                        : number(x.frequencies.front()) + " Hz, amplitudes stepped")
+                << " -> " << file << "\n";
+    }
     try {
       run_deck(run, o);
     } catch (const Interrupted& e) {
@@ -212,6 +267,7 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   map.meta_numbers = results.front().meta_numbers;
   map.meta_text["deck"] = deck.text;
   map.meta_text["deck_path"] = deck.path;
+  map.meta_text["damper"] = damper_fingerprint(build_scene(runs.front()));
   map.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
   map.meta_text.erase("coupling");  // a prescribed motion couples nothing
   for (Results& r : results)

@@ -149,7 +149,8 @@ class Driver::Impl {
   void add_rows(Results& out) const {
     if (!measures_harmonics(excitation())) return;
     for (std::size_t s = 0; s < frequencies_.size(); ++s)
-      if (done_[s]) add_row(out, fills_at(s), sweeps_[s], excitation());
+      if (done_[s])
+        add_row(out, fills_at(s), sweeps_[s], point_amplitude(excitation(), s), excitation());
   }
 
   // Adds what `run` did since `seen` (its particle steps and simulated time) to the totals.
@@ -333,7 +334,11 @@ class Driver::Impl {
   std::string point_name(std::size_t s) const {
     bool both = false;
     for (int sweep : sweeps_) both = both || sweep != sweeps_[0];
-    return "f = " + number(frequencies_[s]) + " Hz" +
+    const std::string amplitude = excitation().amplitudes.empty()
+                                      ? ""
+                                      : ", amplitude " + number(point_amplitude(excitation(), s)) +
+                                            (prescribed() ? " m" : "");
+    return "f = " + number(frequencies_[s]) + " Hz" + amplitude +
            (both ? (sweeps_[s] > 0 ? " (up)" : " (down)") : "");
   }
   void say_adding(std::size_t s, const Ensemble& e, int now, int next) {
@@ -449,7 +454,7 @@ class Driver::Impl {
     const auto k = static_cast<std::size_t>(reached_[r] + 1);
     FrequencyPoint point;
     try {
-      point = run.run_point(frequencies_[k]);
+      point = run.run_point(frequencies_[k], point_amplitude(excitation(), k));
     } catch (const SimulationError& e) {
       fail(run, r, e);
     }
@@ -488,7 +493,7 @@ class Driver::Impl {
           Seen seen{run.system().particle_steps(), run.system().time()};
           FrequencyPoint point;
           try {
-            point = run.run_point(frequencies_[s]);
+            point = run.run_point(frequencies_[s], point_amplitude(excitation(), s));
           } catch (const SimulationError& e) {
             fail(run, r, e);
           }

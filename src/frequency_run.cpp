@@ -235,11 +235,12 @@ Stationary FrequencyRun::judge() const {
   return s;
 }
 
-FrequencyPoint FrequencyRun::run_frequency(double frequency, FrequencyStart start) {
+FrequencyPoint FrequencyRun::run_frequency(double frequency, double amplitude,
+                                           FrequencyStart start) {
   const ExcitationSpec& x = scene_.excitation;
   const SettleSpec& settle = x.settle;
   const bool prescribed = traits(x.kind).moves_containers;
-  const int samples = configure(frequency, prescribed ? x.motion.amplitude : x.amplitude);
+  const int samples = configure(frequency, amplitude);
   const bool fixed = fixed_duration(x);
   const int max_periods = fixed ? std::max(1, static_cast<int>(std::lround(x.duration * frequency)))
                                 : settle.max_periods;
@@ -313,11 +314,11 @@ FrequencyPoint FrequencyRun::finish() {
   return point;
 }
 
-FrequencyPoint FrequencyRun::run_point(double frequency) {
+FrequencyPoint FrequencyRun::run_point(double frequency, double amplitude) {
   const ExcitationSpec& x = scene_.excitation;
   // A point of one fill (a sine) starts from the bed at rest.
   if (measures_harmonics(x))
-    return run_frequency(frequency, runs_points(x) ? x.start : FrequencyStart::carried);
+    return run_frequency(frequency, amplitude, runs_points(x) ? x.start : FrequencyStart::carried);
   run_free_decay();
   return {};
 }

@@ -45,9 +45,10 @@ class FrequencyRun {
   // Lets the particles settle under gravity, containers at rest (scene.bed); time stands still.
   BedReport settle_bed();
 
-  // Runs `frequency` (Hz) starting as `start` says; whole periods until converged or
+  // Runs `frequency` (Hz) at the drive's `amplitude` (see point_amplitude()) starting as `start`
+  // says; whole periods until converged or
   // settle.max_periods (or the fixed number of periods of a `sine` or a prescribed duration).
-  FrequencyPoint run_frequency(double frequency, FrequencyStart start);
+  FrequencyPoint run_frequency(double frequency, double amplitude, FrequencyStart start);
   // Runs `more` further periods of the frequency run last (no more than its max_periods) and
   // judges all its periods again: the driver asks for them while the realisations of a point
   // do not yet agree. periods_left() says how many it may still run; run_period() runs one
@@ -62,7 +63,7 @@ class FrequencyRun {
   void run_free_decay();
   // One point of the scene's excitation: `frequency` started as excitation.start says (a sine
   // from the bed at rest), or the free decay (an empty point; see measures_harmonics()).
-  FrequencyPoint run_point(double frequency);
+  FrequencyPoint run_point(double frequency, double amplitude);
 
   // Time series (and /energy when asked for) recorded so far.
   const TimeSeries& timeseries() const { return timeseries_; }

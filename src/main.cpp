@@ -99,7 +99,10 @@ int main(int argc, char** argv) {
       "predict", "the deck's FRF from a damper map by harmonic balance (every branch)");
   predict->add_option("deck", deck_path, "input deck (TOML): an SDOF under a force stepped sine")
       ->required();
-  predict->add_option("--map", predict_options.map, "the map file (pdsim map)")->required();
+  predict
+      ->add_option("--map", predict_options.maps,
+                   "the map file (pdsim map); several, of one damper, are read as one map")
+      ->required();
   predict->add_option("-o,--output", predict_options.output,
                       "output file (default: the deck's output name with _hb.h5)");
   predict->add_flag("--force", predict_options.force, "overwrite an existing output file");

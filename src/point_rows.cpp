@@ -54,7 +54,7 @@ std::string ensemble_text(const Ensemble& e, bool prescribed) {
 }
 
 void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fills, int sweep,
-             const ExcitationSpec& x) {
+             double amplitude, const ExcitationSpec& x) {
   const bool prescribed = traits(x.kind).moves_containers;
   std::vector<FrequencyPoint> runs;
   for (const auto& [r, p] : fills) runs.push_back(p);
@@ -100,6 +100,8 @@ void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fi
   if (prescribed) {
     PrescribedTable& p = out.prescribed;
     p.frequency.push_back(frequency);
+    p.sweep.push_back(sweep);
+    p.amplitude.push_back(amplitude);
     p.dissipated_power.push_back(energy_in.mean * frequency);
     p.dissipated_power_ci.push_back(energy_in.half_width * frequency);
     p.force_amplitude.push_back(m.amplitude.mean);

@@ -25,8 +25,9 @@ Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const ExcitationSp
 std::string ensemble_text(const Ensemble& e, bool prescribed);
 
 // One row of /frf or /prescribed (with its /periods, /frf/fills and /frf/branch_means) from
-// the fills of one point: (fill index, what it measured).
+// the fills of one point: (fill index, what it measured); the point's sweep (+1 up, -1 down)
+// and drive amplitude (point_amplitude()).
 void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fills, int sweep,
-             const ExcitationSpec& x);
+             double amplitude, const ExcitationSpec& x);
 
 }  // namespace pdsim

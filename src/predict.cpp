@@ -11,6 +11,7 @@
 
 #include "io/excitation.hpp"
 #include "pdsim_version.hpp"
+#include "src/bed_file.hpp"
 #include "src/format.hpp"
 
 namespace pdsim {
@@ -28,9 +29,10 @@ constexpr int kBisections = 80;
 
 }  // namespace
 
-MapInterpolant::MapInterpolant(const MapTable& map) {
+MapInterpolant::MapInterpolant(const MapTable& map, int sweep) {
   std::map<double, Row> by_frequency;
   for (std::size_t i = 0; i < map.frequency.size(); ++i) {
+    if (map.sweep[i] != sweep) continue;
     const double f = map.frequency[i], x = map.amplitude[i], w = 2 * kPi * f;
     if (!(f > 0) || !(x > 0) || !std::isfinite(map.effective_mass[i]) ||
         !std::isfinite(map.effective_damping[i]))
@@ -54,7 +56,10 @@ MapInterpolant::MapInterpolant(const MapTable& map) {
     for (std::size_t k : order) {
       if (!sorted.amplitude.empty() && sorted.amplitude.back() == r.amplitude[k])
         throw InputError("the map holds amplitude " + number(r.amplitude[k]) + " m twice at " +
-                         number(f) + " Hz");
+                         number(f) + " Hz" +
+                         (sweep > 0   ? " (stepped up)"
+                          : sweep < 0 ? " (stepped down)"
+                                      : ""));
       sorted.amplitude.push_back(r.amplitude[k]);
       sorted.real.push_back(r.real[k]);
       sorted.imag.push_back(r.imag[k]);
@@ -187,17 +192,30 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   if (x.input != ExcitationInput::force)
     throw InputError(deck.where("excitation.input"), "excitation.input",
                      "expected \"force\" for pdsim predict (base excitation is not yet predicted)");
-  if (!fs::exists(options.map)) throw InputError(options.map + ": no such map file");
-  Results source = read_results(options.map);
-  if (source.map.frequency.empty())
-    throw InputError(options.map + ": holds no /map (a file that pdsim map writes)");
-  long particles = 0;
-  for (const DamperSpec& d : deck.dampers) particles += d.particles.count;
-  if (static_cast<long>(source.meta_numbers["particles"]) != particles)
-    throw InputError(options.map + ": a map of " +
-                     std::to_string(static_cast<long>(source.meta_numbers["particles"])) +
-                     " particles; the deck's dampers hold " + std::to_string(particles));
-  const MapInterpolant map(source.map);
+  // The maps as one: their rows together, of one damper (the deck's).
+  Results source;
+  const Scene scene = build_scene(deck);
+  const std::string damper = damper_fingerprint(scene);
+  for (const std::string& file : options.maps) {
+    if (!fs::exists(file)) throw InputError(file + ": no such map file");
+    Results one = read_results(file);
+    if (one.map.frequency.empty())
+      throw InputError(file + ": holds no /map (a file that pdsim map writes)");
+    if (one.meta_text["damper"] != damper)
+      throw InputError(file +
+                       ": a map of another damper than the deck's (containers, contact "
+                       "laws and constants, particles' sizes, density or gravity differ)");
+    append_rows(source.map, one.map);
+  }
+  std::vector<int> sweeps = source.map.sweep;
+  std::sort(sweeps.begin(), sweeps.end());
+  sweeps.erase(std::unique(sweeps.begin(), sweeps.end()), sweeps.end());
+  std::vector<std::pair<int, MapInterpolant>> maps;
+  for (int sweep : {0, 1, -1})
+    if (std::binary_search(sweeps.begin(), sweeps.end(), sweep))
+      maps.emplace_back(sweep, MapInterpolant(source.map, sweep));
+  std::string names;
+  for (const std::string& file : options.maps) names += (names.empty() ? "" : ", ") + file;
 
   const std::string path = options.output.empty() ? output_beside(deck, "_hb.h5") : options.output;
   if (fs::exists(path) && !options.force)
@@ -211,27 +229,44 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   Results r;
   HbTable& t = r.frf_hb;
   std::vector<std::string> refused;
+  std::size_t several = 0, apart = 0;  // frequencies with several roots; up and down apart
   for (double f : frequencies) {
-    std::vector<HbRoot> roots;
+    bool many = false;
+    std::vector<const HbRoot*> stable;
+    std::vector<std::vector<HbRoot>> found;
     try {
-      roots = harmonic_balance(map, host, f);
+      for (const auto& [sweep, map] : maps) found.push_back(harmonic_balance(map, host, f));
     } catch (const InputError& e) {
       refused.push_back(e.what());
       continue;
     }
-    for (std::size_t b = 0; b < roots.size(); ++b) {
-      t.frequency.push_back(f);
-      t.branch.push_back(static_cast<int>(b));
-      t.amplitude.push_back(roots[b].amplitude);
-      t.amplitude_ci.push_back(roots[b].amplitude_ci);
-      t.phase.push_back(roots[b].phase);
-      t.stable.push_back(roots[b].stable ? 1 : 0);
-      t.effective_mass.push_back(roots[b].damper.mass);
-      t.effective_damping.push_back(roots[b].damper.damping);
+    for (std::size_t m = 0; m < maps.size(); ++m) {
+      const std::vector<HbRoot>& roots = found[m];
+      many = many || roots.size() > 1;
+      for (std::size_t b = 0; b < roots.size(); ++b) {
+        t.frequency.push_back(f);
+        t.sweep.push_back(maps[m].first);
+        t.branch.push_back(static_cast<int>(b));
+        t.amplitude.push_back(roots[b].amplitude);
+        t.amplitude_ci.push_back(roots[b].amplitude_ci);
+        t.phase.push_back(roots[b].phase);
+        t.stable.push_back(roots[b].stable ? 1 : 0);
+        t.effective_mass.push_back(roots[b].damper.mass);
+        t.effective_damping.push_back(roots[b].damper.damping);
+        if (roots[b].stable) stable.push_back(&roots[b]);
+      }
     }
+    several += many ? 1 : 0;
+    // Stable roots of the two ways further apart than their intervals: the bed's hysteresis.
+    bool differ = false;
+    for (const HbRoot* a : stable)
+      for (const HbRoot* b : stable)
+        differ =
+            differ || std::abs(a->amplitude - b->amplitude) > a->amplitude_ci + b->amplitude_ci;
+    apart += differ && maps.size() > 1 ? 1 : 0;
   }
   if (!refused.empty()) {
-    std::string what = options.map + " does not cover the deck's response (nothing written):";
+    std::string what = names + " does not cover the deck's response (nothing written):";
     for (const std::string& e : refused) what += "\n  " + e;
     throw InputError(what);
   }
@@ -240,19 +275,19 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   r.meta_text["deck"] = deck.text;
   r.meta_text["deck_path"] = deck.path;
   r.meta_text["title"] = deck.title;
+  r.meta_text["maps"] = names;
   r.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
   r.meta_numbers["wall_time_s"] = wall;
   write_results(path, r, true, true);
 
   std::optional<std::size_t> peak;  // the highest stable root
-  std::size_t several = 0;
-  for (std::size_t i = 0; i < t.frequency.size(); ++i) {
+  for (std::size_t i = 0; i < t.frequency.size(); ++i)
     if (t.stable[i] && (!peak || t.amplitude[i] > t.amplitude[*peak])) peak = i;
-    if (t.branch[i] == 1) ++several;
-  }
   std::ostringstream s;
-  s << "harmonic balance from " << options.map << ": " << frequencies.size() << " frequencies, "
-    << several << " with several branches; ";
+  s << "harmonic balance from " << names << ": " << frequencies.size() << " frequencies, "
+    << several << " with several branches";
+  if (maps.size() > 1) s << ", " << apart << " where the map's ways up and down give other states";
+  s << "; ";
   if (peak)
     s << "peak of the stable branches " << number(1e3 * t.amplitude[*peak]) << " mm at "
       << number(t.frequency[*peak]) << " Hz";

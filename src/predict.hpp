@@ -22,7 +22,9 @@ namespace pdsim {
 // extrapolated: a point outside the map has no value.
 class MapInterpolant {
  public:
-  explicit MapInterpolant(const MapTable& map);  // throws InputError for a map it cannot read
+  // The map's rows of one `sweep` (0: points from the settled bed; +1 amplitudes stepped up,
+  // -1 back down: the bed's states on each way). Throws InputError for a map it cannot read.
+  MapInterpolant(const MapTable& map, int sweep = 0);
   struct Value {
     double mass = 0, damping = 0, mass_ci = 0, damping_ci = 0;  // kg, N s/m
   };
@@ -58,12 +60,14 @@ std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const SdofHost& 
                                      double frequency);
 
 struct PredictOptions {
-  std::string map;     // the map file
-  std::string output;  // default: the deck's output name with "_hb.h5"
+  std::vector<std::string> maps;  // the map files (one damper's, read as one map)
+  std::string output;             // default: the deck's output name with "_hb.h5"
   bool force = false;
 };
 
-// The deck's FRF (an SDOF under a force stepped sine) from the map; writes /frf_hb.
+// The deck's FRF (an SDOF under a force stepped sine) from the maps; writes /frf_hb. With
+// amplitudes stepped up and down in the map, the roots of each way are reported (branches a
+// slow rise or fall of the amplitude finds).
 RunReport run_predict(const Deck& deck, const PredictOptions& options);
 
 }  // namespace pdsim

@@ -23,7 +23,8 @@ The format follows the extension of -o: .png (200 dpi), .pdf or .svg (vector); t
 - prescribed: /prescribed dissipated power (W) and first-harmonic force amplitude (N) against the
   drive frequency, with 95 % intervals, one colour per file.
 - map: a damper map (pdsim map, /map): effective mass (kg) and damping (N s/m) against the
-  motion's amplitude (mm), one curve per frequency, with 95 % intervals.
+  motion's amplitude (mm), one curve per frequency, with 95 % intervals (amplitudes stepped up:
+  triangles up; back down: triangles down, dashed).
 - bed: one particle snapshot (output.particles) in 3-D, the container's frame, each sphere to
   scale and coloured by its speed (the snapshot nearest --time, default the last); ParaView
   plays them all (OUT.xdmf).
@@ -149,21 +150,30 @@ def damper_map(args):
     m, title = group(args.file, "map")
     figure, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
     frequencies = np.unique(m["frequency"])
+    sweep = m.get("sweep", np.zeros(len(m["frequency"]), dtype=int))
+    # Points from the settled bed: circles; amplitudes stepped up: triangles up, solid; back
+    # down: triangles down, dashed (the bed's hysteresis is where the two differ).
+    styles = {0: "o-", 1: "^-", -1: "v--"}
     for index, f in enumerate(frequencies):
-        rows = m["frequency"] == f
-        order = np.argsort(m["amplitude"][rows])
-        x = 1e3 * m["amplitude"][rows][order]
         color = plt.cm.viridis(index / max(1, len(frequencies) - 1))
-        for axes, key in ((top, "effective_mass"), (bottom, "effective_damping")):
-            axes.errorbar(x, m[key][rows][order], yerr=m[key + "_ci"][rows][order], fmt="o-",
-                          ms=3, capsize=2, color=color,
-                          label=f"{f:g} Hz" if axes is top else None)
+        for way in (0, 1, -1):
+            rows = (m["frequency"] == f) & (sweep == way)
+            if not rows.any():
+                continue
+            order = np.argsort(m["amplitude"][rows])
+            x = 1e3 * m["amplitude"][rows][order]
+            first = way == sweep[m["frequency"] == f][0]
+            for axes, key in ((top, "effective_mass"), (bottom, "effective_damping")):
+                axes.errorbar(x, m[key][rows][order], yerr=m[key + "_ci"][rows][order],
+                              fmt=styles[way], ms=3, capsize=2, color=color,
+                              label=f"{f:g} Hz" if axes is top and first else None)
     top.set_ylabel("effective mass (kg)")
     bottom.set_ylabel("effective damping (N s/m)")
     bottom.set_xlabel("motion amplitude (mm)")
     bottom.set_xscale("log")
     top.legend(fontsize="x-small", ncol=2)
-    top.set_title(f"{title}: damper map; error bars: 95 % confidence", fontsize="small")
+    stepped = "; amplitudes stepped up (^) and down (v, dashed)" if (sweep != 0).any() else ""
+    top.set_title(f"{title}: damper map; error bars: 95 % confidence{stepped}", fontsize="small")
     for axes in (top, bottom):
         axes.grid(True, alpha=0.3)
     save(figure, args.output)

@@ -58,7 +58,9 @@ force input only; files driven otherwise are an error.
 --bare: the bare structure's analytic response (single-DOF structures under force input, from
 the first file's deck: mass, stiffness and damping), drawn as a thin black line.
 --hb HB.h5: a harmonic-balance prediction (pdsim predict, /frf_hb) over the coupled FRF, a thin
-line through each branch, stable roots as filled squares, unstable ones hollow.
+line through each branch, stable roots filled, unstable ones hollow: squares from a map's points
+run from the settled bed, triangles up (solid) and down (dashed) from its amplitudes stepped up
+and down.
 
 --measured CSV: a digitised measured curve (e.g. Saeki 2002, fig. 5b), plain text, comma
 separated, first line exactly the header `frequency_hz,amplitude_m`, then one point per line
@@ -375,23 +377,34 @@ def plot_hb(amplitude_axes, phase_axes, path, scale, color):
         with h5py.File(path, "r") as h5:
             if "frf_hb" not in h5:
                 sys.exit(f"plot_frf.py: {path} has no /frf_hb group (a pdsim predict output)")
-            hb = columns(path, h5["frf_hb"], ["frequency", "branch", "amplitude", "phase",
-                                             "stable"])
+            hb = columns(path, h5["frf_hb"], ["frequency", "sweep", "branch", "amplitude",
+                                             "phase", "stable"])
     except OSError as error:
         sys.exit(f"plot_frf.py: cannot read {path}: {error}")
     label = f"harmonic balance ({os.path.basename(path)})"
-    for branch in np.unique(hb["branch"]):
-        rows = hb["branch"] == branch
-        order = np.argsort(hb["frequency"][rows])
-        f = hb["frequency"][rows][order]
-        for axes, values, s in ((amplitude_axes, hb["amplitude"], scale),
-                                (phase_axes, hb["phase"], 1)):
-            v = values[rows][order] * s
-            stable = hb["stable"][rows][order] == 1
-            axes.plot(f, v, "-", lw=0.8, color=color,
-                      label=label if axes is amplitude_axes and branch == 0 else None)
-            axes.plot(f[stable], v[stable], "s", ms=3.5, color=color)
-            axes.plot(f[~stable], v[~stable], "s", ms=3.5, mfc="none", color=color)
+    if hb["sweep"] is None:  # older predictions had one map, from the settled bed
+        hb["sweep"] = np.zeros(len(hb["frequency"]), dtype=int)
+    # Roots from a map stepped up: solid line, triangles up; stepped down: dashed, triangles
+    # down; from points run from the settled bed: solid, squares.
+    styles = {0: ("-", "s"), 1: ("-", "^"), -1: ("--", "v")}
+    labelled = False
+    for way in (0, 1, -1):
+        for branch in np.unique(hb["branch"]):
+            rows = (hb["branch"] == branch) & (hb["sweep"] == way)
+            if not rows.any():
+                continue
+            order = np.argsort(hb["frequency"][rows])
+            f = hb["frequency"][rows][order]
+            line, marker = styles[way]
+            for axes, values, s in ((amplitude_axes, hb["amplitude"], scale),
+                                    (phase_axes, hb["phase"], 1)):
+                v = values[rows][order] * s
+                stable = hb["stable"][rows][order] == 1
+                axes.plot(f, v, line, lw=0.8, color=color,
+                          label=label if axes is amplitude_axes and not labelled else None)
+                axes.plot(f[stable], v[stable], marker, ms=3.5, color=color)
+                axes.plot(f[~stable], v[~stable], marker, ms=3.5, mfc="none", color=color)
+            labelled = True
 
 
 def main(argv=None):

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "src/damper_map.hpp"
+#include "src/predict.hpp"
 
 using namespace pdsim;
 namespace fs = std::filesystem;
@@ -49,23 +50,13 @@ accelerations = [0.1, 3.0]
 frequencies = [15.0, 20.0]
 )";
 
-}  // namespace
-
-TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once it slides") {
-  const fs::path dir = fs::temp_directory_path() / ("pdsim_map_" + std::to_string(getpid()));
-  fs::create_directories(dir);
-  const Deck deck = parse_deck(kBallDeck, "ball.toml");
-  MapOptions options;
-  options.output = (dir / "ball_map.h5").string();
-  options.quiet = true;
-  options.jobs = 1;
-  const RunReport report = run_map(deck, options);
-  const MapTable m = read_results(report.output).map;
-  REQUIRE(m.frequency.size() == 4);  // 2 accelerations x 2 frequencies
+// Every point of a map of the ball checked against rolling (below 3.5 mu g) or sliding.
+void check_ball(const MapTable& m) {
   const double mass = 7800.0 * 4.0 / 3.0 * kPi * std::pow(0.002, 3), mu = 0.3, g = 9.81;
   for (std::size_t i = 0; i < m.frequency.size(); ++i) {
     CAPTURE(m.frequency[i]);
     CAPTURE(m.acceleration[i]);
+    CAPTURE(m.sweep[i]);
     CHECK(m.converged[i] == 1);
     const double w = 2 * kPi * m.frequency[i];
     CHECK(m.amplitude[i] * w * w / kStandardGravity == doctest::Approx(m.acceleration[i]));
@@ -80,6 +71,23 @@ TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once i
       CHECK(m.effective_damping[i] > 0);
     }
   }
+}
+
+}  // namespace
+
+TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once it slides") {
+  const fs::path dir = fs::temp_directory_path() / ("pdsim_map_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const Deck deck = parse_deck(kBallDeck, "ball.toml");
+  MapOptions options;
+  options.output = (dir / "ball_map.h5").string();
+  options.quiet = true;
+  options.jobs = 1;
+  const RunReport report = run_map(deck, options);
+  const MapTable m = read_results(report.output).map;
+  REQUIRE(m.frequency.size() == 4);          // 2 accelerations x 2 frequencies
+  CHECK(m.sweep == std::vector<int>(4, 0));  // each from the settled bed
+  check_ball(m);
   // A finished map is not overwritten without --force; its runs are kept beside it, and with
   // --resume a map is made from the finished runs without running them again.
   CHECK_THROWS_WITH_AS(run_map(deck, options), doctest::Contains("map file exists"), InputError);
@@ -89,6 +97,47 @@ TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once i
   const MapTable n = read_results(again.output).map;
   CHECK(n.effective_mass == m.effective_mass);
   CHECK(n.force_amplitude == m.force_amplitude);
+
+  // The map predicts a host of this damper (its structure's mass doubled is another host, the
+  // same damper); a deck of another damper, or one map read twice, is refused.
+  std::string host = kBallDeck;
+  host.replace(host.find("mass = 0.5"), 10, "mass = 1.0");
+  PredictOptions predict;
+  predict.maps = {again.output};
+  predict.output = (dir / "hb.h5").string();
+  CHECK(read_results(run_predict(parse_deck(host, "host.toml"), predict).output)
+            .frf_hb.frequency.size() >= 1);
+  std::string other = kBallDeck;
+  other.replace(other.find("friction = 0.3"), 14, "friction = 0.2");
+  predict.force = true;
+  CHECK_THROWS_WITH_AS(run_predict(parse_deck(other, "other.toml"), predict),
+                       doctest::Contains("a map of another damper"), InputError);
+  predict.maps = {again.output, again.output};
+  CHECK_THROWS_WITH_AS(run_predict(deck, predict), doctest::Contains("twice"), InputError);
+  fs::remove_all(dir);
+}
+
+// Stepped up and back down at each frequency, the ball carried from one amplitude to the next:
+// it slides at 3 g and rolls again at 0.1 g on the way down (a single ball has no hysteresis),
+// and the points come in the order they ran.
+TEST_CASE("a map of one ball stepped up and down: it rolls again on the way down") {
+  const fs::path dir = fs::temp_directory_path() / ("pdsim_map_steps_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  std::string text = kBallDeck;
+  text.insert(text.find("accelerations"), "steps = \"both\"\n");
+  MapOptions options;
+  options.output = (dir / "ball_map.h5").string();
+  options.quiet = true;
+  options.jobs = 1;
+  const MapTable m = read_results(run_map(parse_deck(text, "ball.toml"), options).output).map;
+  REQUIRE(m.frequency.size() == 8);  // 2 frequencies x (2 up + 2 down)
+  CHECK(m.frequency == std::vector<double>{15, 15, 15, 15, 20, 20, 20, 20});
+  CHECK(m.sweep == std::vector<int>{1, 1, -1, -1, 1, 1, -1, -1});
+  CHECK(m.acceleration[0] == doctest::Approx(0.1));
+  CHECK(m.acceleration[1] == doctest::Approx(3.0));
+  CHECK(m.acceleration[2] == doctest::Approx(3.0));
+  CHECK(m.acceleration[3] == doctest::Approx(0.1));
+  check_ball(m);
   fs::remove_all(dir);
 }
 
@@ -108,6 +157,8 @@ TEST_CASE("[map] refuses what it cannot map, naming the key or the reason") {
   refused("[map]\namplitudes = [0.001]\n", "map.frequencies");
   refused("[map]\namplitudes = [0.001, 0.001]\nfrequencies = [10.0]\n", "expected each value once");
   refused("[map]\namplitudes = [0.001]\nfrequencies = [10.0]\nspeed = 1\n", "map.speed");
+  refused("[map]\namplitudes = [0.001]\nfrequencies = [10.0]\nsteps = \"sideways\"\n",
+          "\"independent\", \"up\", \"both\"");
   refused(
       "[map]\namplitudes = [0.001]\nfrequencies = [10.0]\n[sweep]\n\"contact.friction\" = [0.1]\n",
       "not with a [sweep] table");

@@ -26,6 +26,7 @@ MapTable synthetic_map(const std::vector<double>& frequencies,
   for (double f : frequencies)
     for (double x : amplitudes) {
       t.frequency.push_back(f);
+      t.sweep.push_back(0);
       t.amplitude.push_back(x);
       t.effective_mass.push_back(mass(f, x));
       t.effective_damping.push_back(damping(f, x));
@@ -63,6 +64,32 @@ TEST_CASE("harmonic balance: a constant effective mass and damping give the host
   }
 }
 
+// A map stepped up and down holds each way's states: each is read on its own (sweep +1, -1),
+// and each gives the receptance with its own effective mass.
+TEST_CASE("harmonic balance: the ways up and down of a stepped map are read apart") {
+  const double up_mass = 0.1, down_mass = 0.3, c0 = 2.0;
+  MapTable map = synthetic_map(
+      {14, 16}, {1e-6, 1e-1}, [&](double, double) { return up_mass; },
+      [&](double, double) { return c0; });
+  map.sweep.assign(map.frequency.size(), 1);
+  MapTable down = synthetic_map(
+      {14, 16}, {1e-1, 1e-6}, [&](double, double) { return down_mass; },
+      [&](double, double) { return c0; });
+  down.sweep.assign(down.frequency.size(), -1);
+  append_rows(map, down);
+  REQUIRE(map.frequency.size() == 8);
+  CHECK_THROWS_WITH_AS(MapInterpolant(map, 0), doctest::Contains("no points"), InputError);
+  const double f = 15.0, w = 2 * kPi * f;
+  for (const auto& [sweep, mass] : {std::pair{1, up_mass}, std::pair{-1, down_mass}}) {
+    CAPTURE(sweep);
+    const std::complex<double> d(kHost.stiffness - (kHost.mass + mass) * w * w,
+                                 w * (kHost.damping + c0));
+    const std::vector<HbRoot> roots = harmonic_balance(MapInterpolant(map, sweep), kHost, f);
+    REQUIRE(roots.size() == 1);
+    CHECK(roots[0].amplitude == doctest::Approx(kHost.force / std::abs(d)).epsilon(1e-9));
+  }
+}
+
 TEST_CASE(
     "harmonic balance: Coulomb friction gives Den Hartog's amplitude, unbounded at resonance") {
   // Friction force Ff against the sliding: first harmonic 4 Ff / pi in phase with the velocity,
@@ -96,15 +123,7 @@ TEST_CASE(
       {10}, {1e-3, 2e-3}, [](double, double) { return 0.0; }, [](double, double) { return 1.0; });
   const MapTable high = synthetic_map(
       {20}, {1e-4, 2e-4}, [](double, double) { return 0.0; }, [](double, double) { return 1.0; });
-  auto join = [&](std::vector<double>& a, const std::vector<double>& b) {
-    a.insert(a.end(), b.begin(), b.end());
-  };
-  join(apart.frequency, high.frequency);
-  join(apart.amplitude, high.amplitude);
-  join(apart.effective_mass, high.effective_mass);
-  join(apart.effective_damping, high.effective_damping);
-  join(apart.effective_mass_ci, high.effective_mass_ci);
-  join(apart.effective_damping_ci, high.effective_damping_ci);
+  append_rows(apart, high);
   CHECK_THROWS_WITH_AS(harmonic_balance(MapInterpolant(apart), kHost, 15.0),
                        doctest::Contains("do not overlap"), InputError);
 }

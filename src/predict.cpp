@@ -234,8 +234,14 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
     bool many = false;
     std::vector<const HbRoot*> stable;
     std::vector<std::vector<HbRoot>> found;
+    // Each way of the map that has the frequency gives its roots (a stepped map may cover
+    // only the resonance); a frequency that none has is refused with the first one's reason.
+    bool covered = false;
+    for (const auto& [sweep, map] : maps) covered = covered || map.amplitudes(f).second > 0;
     try {
-      for (const auto& [sweep, map] : maps) found.push_back(harmonic_balance(map, host, f));
+      for (const auto& [sweep, map] : maps)
+        found.push_back(!covered || map.amplitudes(f).second > 0 ? harmonic_balance(map, host, f)
+                                                                 : std::vector<HbRoot>{});
     } catch (const InputError& e) {
       refused.push_back(e.what());
       continue;

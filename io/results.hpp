@@ -229,7 +229,8 @@ void map_columns(T& t, F&& f) {
 void append_rows(MapTable& to, const MapTable& from);
 
 struct HbTable {
-  std::vector<double> frequency, amplitude, amplitude_ci, phase, effective_mass, effective_damping;
+  std::vector<double> frequency, amplitude, amplitude_ci, phase, damper_amplitude, effective_mass,
+      effective_damping;
   std::vector<int> sweep, branch, stable;
 };
 template <class T, class F>
@@ -240,12 +241,15 @@ void hb_columns(T& t, F&& f) {
     "stepped up, -1 stepped down");
   f("branch", t.branch, "1",
     "the balance's roots at this frequency and sweep, from 0 = the lowest amplitude");
-  f("amplitude", t.amplitude, "m", "first-harmonic displacement amplitude of the structure");
+  f("amplitude", t.amplitude, "m",
+    "first-harmonic displacement amplitude of the structure's response point (as /frf)");
   f("amplitude_ci", t.amplitude_ci, "m",
     "95 % half-width from the map's intervals, to first order (infinite at a turning point)");
   f("phase", t.phase, "rad", "x = amplitude sin(angle + phase) against the force F0 sin(angle)");
   f("stable", t.stable, "1",
-    "1 when the root is stable to slow changes of amplitude (d(X |D(X)|)/dX > 0)");
+    "1 when the root is stable to slow changes of amplitude (d(X |1 + Z(X) H|)/dX > 0)");
+  f("damper_amplitude", t.damper_amplitude, "m",
+    "the damper's container motion X at the root (the map's amplitude)");
   f("effective_mass", t.effective_mass, "kg", "the map's effective mass at this amplitude");
   f("effective_damping", t.effective_damping, "N s/m", "the map's effective damping here");
 }

@@ -67,6 +67,20 @@ void carry_with_container(DemEngine& engine, const ContainerKinematics& from,
   engine.restore(state);
 }
 
+}  // namespace
+
+DrivePhasors drive_phasors(const LinearStructure& s, ExcitationInput input, double amplitude,
+                           double omega) {
+  if (input == ExcitationInput::force)
+    return {amplitude * s.force_shape.cast<std::complex<double>>(), 0.0};
+  const double w = omega;
+  const std::complex<double> base =
+      input == ExcitationInput::base_displacement ? amplitude : -amplitude / (w * w);
+  return {(w * w * base) * (s.mass * s.base_influence).cast<std::complex<double>>(), base};
+}
+
+namespace {
+
 const LinearStructure& structure_of(const Scene& scene) {
   static const LinearStructure none;
   return scene.structure ? *scene.structure : none;
@@ -456,20 +470,8 @@ ContainerKinematics CoupledSystem::container_now(std::size_t k) const {
 
 Eigen::VectorXcd CoupledSystem::predicted_harmonic(
     const std::vector<std::complex<double>>& impedance) const {
-  const double w = drive_.omega;
-  // Phasors relative to e^{i angle}: force input P = A f; base input y = Im(Y e^{i angle}) loads
-  // the relative coordinates with -M r y'' = w^2 M r y.
-  std::complex<double> base = 0;
-  Eigen::VectorXcd load;
-  if (drive_.input == ExcitationInput::force) {
-    load = drive_.amplitude * structure_.force_shape.cast<std::complex<double>>();
-  } else {
-    base = drive_.input == ExcitationInput::base_displacement ? drive_.amplitude
-                                                              : -drive_.amplitude / (w * w);
-    load =
-        (w * w * base) * (structure_.mass * structure_.base_influence).cast<std::complex<double>>();
-  }
-  return harmonic_response(structure_, w, load, impedance, base);
+  const DrivePhasors p = drive_phasors(structure_, drive_.input, drive_.amplitude, drive_.omega);
+  return harmonic_response(structure_, drive_.omega, p.load, impedance, p.base);
 }
 
 void CoupledSystem::start_on(const Eigen::VectorXcd& harmonic,

@@ -52,6 +52,16 @@ struct Energy {
   double kinetic = 0, potential = 0;
 };
 
+// The drive's phasors at omega on `s` (against e^{i angle}): the load on its coordinates and the
+// base's displacement. Force input: P = A f, no base; base input y = Im(Y e^{i angle}) loads the
+// relative coordinates with -M r y'' = w^2 M r Y.
+struct DrivePhasors {
+  Eigen::VectorXcd load;
+  std::complex<double> base;
+};
+DrivePhasors drive_phasors(const LinearStructure& s, ExcitationInput input, double amplitude,
+                           double omega);
+
 class CoupledSystem {
  public:
   explicit CoupledSystem(const Scene& scene);

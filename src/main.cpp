@@ -97,7 +97,9 @@ int main(int argc, char** argv) {
   pdsim::PredictOptions predict_options;
   auto* predict = app.add_subcommand(
       "predict", "the deck's FRF from a damper map by harmonic balance (every branch)");
-  predict->add_option("deck", deck_path, "input deck (TOML): an SDOF under a force stepped sine")
+  predict
+      ->add_option("deck", deck_path,
+                   "input deck (TOML): a structure with one damper under a stepped sine")
       ->required();
   predict
       ->add_option("--map", predict_options.maps,

@@ -12,6 +12,7 @@
 #include "io/excitation.hpp"
 #include "pdsim_version.hpp"
 #include "src/bed_file.hpp"
+#include "src/coupled_system.hpp"
 #include "src/format.hpp"
 
 namespace pdsim {
@@ -117,8 +118,24 @@ MapInterpolant::Value MapInterpolant::at(double frequency, double amplitude) con
           lerp(a.damping_ci, b.damping_ci)};
 }
 
-std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const SdofHost& host,
-                                     double frequency) {
+HostAt host_at(const LinearStructure& s, ExcitationInput input, double amplitude,
+               double frequency) {
+  HostAt h;
+  h.omega = 2 * kPi * frequency;
+  const DrivePhasors drive = drive_phasors(s, input, amplitude, h.omega);
+  h.load = drive.load;
+  h.base = drive.base;
+  const Eigen::RowVectorXd row = s.attachment_translation.row(0);
+  const Eigen::RowVectorXcd t = row.cast<std::complex<double>>();
+  h.shift = {0.0, h.omega * h.omega * (row * s.mass * row.transpose()).value()};
+  const std::vector<std::complex<double>> held(s.attachment_translation.rows(), h.shift);
+  h.bare = h.base + (t * harmonic_response(s, h.omega, h.load, held, h.base)).value();
+  h.receptance = (t * harmonic_response(s, h.omega, t.transpose(), held, 0.0)).value();
+  return h;
+}
+
+std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const LinearStructure& s,
+                                     const HostAt& host, double frequency) {
   const auto [lo, hi] = map.amplitudes(frequency);
   if (hi <= 0)
     throw InputError("frequency " + number(frequency) + " Hz is outside the map's frequencies (" +
@@ -128,20 +145,30 @@ std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const SdofHost& 
     throw InputError("at " + number(frequency) +
                      " Hz the map's amplitudes at the frequencies either side do not overlap; "
                      "map more frequencies or a wider range of accelerations");
-  const double w = 2 * kPi * frequency;
-  auto dynamic = [&](const MapInterpolant::Value& v) {
-    return std::complex<double>(host.stiffness - (host.mass + v.mass) * w * w,
-                                w * (host.damping + v.damping));
+  const double w = host.omega;
+  auto impedance = [&](double x) {
+    const MapInterpolant::Value v = map.at(frequency, x);
+    return std::complex<double>(-v.mass * w * w, w * v.damping);
   };
-  auto h = [&](double x) { return x * std::abs(dynamic(map.at(frequency, x))) - host.force; };
+  // X |1 + (Z(X) - Z0) H| - |G|: negative where the drive outweighs the damper's motion.
+  auto h = [&](double x) {
+    return x * std::abs(1.0 + (impedance(x) - host.shift) * host.receptance) - std::abs(host.bare);
+  };
+  // The structure's reported displacement with the damper acting as the impedance z.
+  auto response = [&](std::complex<double> z) {
+    const std::vector<std::complex<double>> damper(s.attachment_translation.rows(), z);
+    return (s.response.cast<std::complex<double>>() *
+            harmonic_response(s, w, host.load, damper, host.base))
+        .value();
+  };
   if (h(lo) > 0)
     throw InputError("at " + number(frequency) +
-                     " Hz the structure's amplitude is below the map's smallest there (" +
-                     number(lo) + " m); extend the map to smaller amplitudes");
+                     " Hz the damper's amplitude is below the map's smallest there (" + number(lo) +
+                     " m); extend the map to smaller amplitudes");
   if (h(hi) < 0)
     throw InputError("at " + number(frequency) +
-                     " Hz the structure's amplitude is above the map's largest there (" +
-                     number(hi) + " m); extend the map to larger amplitudes");
+                     " Hz the damper's amplitude is above the map's largest there (" + number(hi) +
+                     " m); extend the map to larger amplitudes");
   std::vector<HbRoot> roots;
   const double ratio = std::pow(hi / lo, 1.0 / (kScanPoints - 1));
   double a = lo, ha = h(lo);
@@ -157,21 +184,29 @@ std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const SdofHost& 
           right = mid;
       }
       HbRoot r;
-      r.amplitude = 0.5 * (left + right);
-      r.damper = map.at(frequency, r.amplitude);
-      const std::complex<double> d = dynamic(r.damper);
-      r.phase = -std::arg(d);
-      // Slow amplitude changes grow X where the force outweighs X |D| (h < 0): a root where h
-      // rises is stable, one where it falls (the middle of a jump) is not.
-      const double step = 1e-6 * r.amplitude;
-      const double up = std::min(hi, r.amplitude + step), down = std::max(lo, r.amplitude - step);
+      const double x = 0.5 * (left + right);
+      r.damper_amplitude = x;
+      r.damper = map.at(frequency, x);
+      const std::complex<double> z = impedance(x), u = response(z);
+      r.amplitude = std::abs(u);
+      r.phase = std::arg(u);
+      // Slow amplitude changes grow X where the drive outweighs the damper's motion (h < 0): a
+      // root where h rises is stable, one where it falls (the middle of a jump) is not.
+      const double step = 1e-6 * x;
+      const double up = std::min(hi, x + step), down = std::max(lo, x - step);
       const double slope = (h(up) - h(down)) / (up - down);
       r.stable = slope > 0;
-      const double size = std::abs(d);
-      const double h_mass = r.amplitude * (-w * w * d.real() / size);
-      const double h_damping = r.amplitude * (w * d.imag() / size);
-      r.amplitude_ci =
-          std::hypot(h_mass * r.damper.mass_ci, h_damping * r.damper.damping_ci) / std::abs(slope);
+      // The map's intervals to first order: moving its impedance by dz at X moves h by
+      // X Re(conj(q) H dz) / |q| (q = 1 + (Z - Z0) H), the root by dX = -dh / slope, and Z along
+      // the map by Z'(X) dX; the response follows Z.
+      const std::complex<double> q = 1.0 + (z - host.shift) * host.receptance;
+      const std::complex<double> dz_dx = (impedance(up) - impedance(down)) / (up - down);
+      auto moved = [&](std::complex<double> dz) {
+        const double dx = -x * std::real(std::conj(q) * host.receptance * dz) / std::abs(q) / slope;
+        return std::abs(std::abs(response(z + dz + dz_dx * dx)) - r.amplitude);
+      };
+      r.amplitude_ci = std::hypot(moved({-w * w * r.damper.mass_ci, 0.0}),
+                                  moved({0.0, w * r.damper.damping_ci}));
       roots.push_back(r);
     }
     a = b, ha = hb;
@@ -182,16 +217,16 @@ std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const SdofHost& 
 RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   namespace fs = std::filesystem;
   const auto started = std::chrono::steady_clock::now();
-  if (deck.structure.kind != StructureKind::sdof)
-    throw InputError(deck.where("structure.kind"), "structure.kind",
-                     "expected \"sdof\" for pdsim predict (a beam's is not yet predicted)");
+  if (deck.structure.kind == StructureKind::none)
+    throw InputError(deck.path + ": pdsim predict needs a [structure] to put the damper on");
+  if (deck.dampers.size() != 1)
+    throw InputError(deck.where("damper"), "damper",
+                     "expected one [[damper]] for pdsim predict (a map is one damper's), got " +
+                         std::to_string(deck.dampers.size()));
   const ExcitationSpec& x = deck.excitation;
   if (traits(x.kind).moves_containers || !measures_harmonics(x))
     throw InputError(deck.where("excitation.kind"), "excitation.kind",
                      "expected \"stepped_sine\" or \"sine\" for pdsim predict");
-  if (x.input != ExcitationInput::force)
-    throw InputError(deck.where("excitation.input"), "excitation.input",
-                     "expected \"force\" for pdsim predict (base excitation is not yet predicted)");
   // The maps as one: their rows together, of one damper (the deck's).
   Results source;
   const Scene scene = build_scene(deck);
@@ -224,8 +259,7 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   std::vector<double> frequencies = run_frequencies(x);
   std::sort(frequencies.begin(), frequencies.end());
   frequencies.erase(std::unique(frequencies.begin(), frequencies.end()), frequencies.end());
-  const SdofHost host{deck.structure.mass, deck.structure.stiffness, deck.structure.damping,
-                      x.amplitude};
+  const LinearStructure& structure = *scene.structure;
   Results r;
   HbTable& t = r.frf_hb;
   std::vector<std::string> refused;
@@ -238,10 +272,12 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
     // only the resonance); a frequency that none has is refused with the first one's reason.
     bool covered = false;
     for (const auto& [sweep, map] : maps) covered = covered || map.amplitudes(f).second > 0;
+    const HostAt host = host_at(structure, x.input, x.amplitude, f);
     try {
       for (const auto& [sweep, map] : maps)
-        found.push_back(!covered || map.amplitudes(f).second > 0 ? harmonic_balance(map, host, f)
-                                                                 : std::vector<HbRoot>{});
+        found.push_back(!covered || map.amplitudes(f).second > 0
+                            ? harmonic_balance(map, structure, host, f)
+                            : std::vector<HbRoot>{});
     } catch (const InputError& e) {
       refused.push_back(e.what());
       continue;
@@ -255,6 +291,7 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
         t.branch.push_back(static_cast<int>(b));
         t.amplitude.push_back(roots[b].amplitude);
         t.amplitude_ci.push_back(roots[b].amplitude_ci);
+        t.damper_amplitude.push_back(roots[b].damper_amplitude);
         t.phase.push_back(roots[b].phase);
         t.stable.push_back(roots[b].stable ? 1 : 0);
         t.effective_mass.push_back(roots[b].damper.mass);

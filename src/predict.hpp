@@ -1,8 +1,10 @@
 // pdsim predict: a host structure's FRF from a damper map (pdsim map) by harmonic balance, in
 // milliseconds instead of a coupled run. The damper acts on the host through the first harmonic
-// of its force, F1 = (w^2 m_eff(X, f) - i w c_eff(X, f)) X, so an SDOF of mass M, stiffness K and
-// damping C under a force F0 sin(w t) moves with amplitude X where
-//   X |K - (M + m_eff) w^2 + i w (C + c_eff)| = F0,
+// of its force, as the impedance Z(X, f) = -m_eff w^2 + i w c_eff of its container's motion X.
+// A linear host (an SDOF, a beam) moves the damper's point by U = G / (1 + Z H), with G its
+// motion without the damper and H its receptance there, so the damper moves with amplitude X
+// where
+//   X |1 + Z(X, f) H| = |G|   (an SDOF under F0: X |K - (M + m_eff) w^2 + i w (C + c_eff)| = F0),
 // solved at each frequency for every root: where the map's effective mass changes with the
 // amplitude, several roots (branches) coexist and the response jumps between them.
 #pragma once
@@ -13,6 +15,7 @@
 #include "io/deck.hpp"
 #include "io/results.hpp"
 #include "src/run.hpp"
+#include "structure/structure.hpp"
 
 namespace pdsim {
 
@@ -45,19 +48,33 @@ class MapInterpolant {
 };
 
 struct HbRoot {
-  double amplitude = 0, amplitude_ci = 0, phase = 0;  // m, m, rad
+  // The structure's response (the FRF's, see HostAt::response) and the damper's own amplitude.
+  double amplitude = 0, amplitude_ci = 0, phase = 0, damper_amplitude = 0;  // m, m, rad, m
   bool stable = false;
   MapInterpolant::Value damper;
 };
-struct SdofHost {
-  double mass = 0, stiffness = 0, damping = 0, force = 0;  // kg, N/m, N s/m, N (amplitude)
-};
 
-// Every amplitude that balances the force at `frequency`, ascending. Throws InputError naming the
-// frequency when the balance's root lies outside the map's amplitudes (below its smallest or
-// above its largest) or the frequency outside its frequencies.
-std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const SdofHost& host,
-                                     double frequency);
+// A linear host driven at one frequency, as its one damper sees it, phasors against the drive's.
+// H and G are taken with the damper point held by a reference impedance Z0 (then the damper's
+// motion is U = G / (1 + (Z - Z0) H)), so that an undamped host at its own frequency, whose bare
+// receptance is infinite, still has finite ones.
+struct HostAt {
+  double omega = 0;                 // rad/s
+  std::complex<double> shift;       // Z0 = i w^2 t^T M t, N/m: the damper point's mass, as damping
+  std::complex<double> receptance;  // H, m/N: the damper point's motion per unit force there
+  std::complex<double> bare;        // G, m: the damper point's absolute motion under the drive
+  Eigen::VectorXcd load;            // the drive's load on the structure's coordinates
+  std::complex<double> base;        // the base's displacement phasor (force input: 0)
+};
+// `s` (with one damper mounted) under the deck's drive (`input`, `amplitude`) at `frequency` Hz.
+HostAt host_at(const LinearStructure& s, ExcitationInput input, double amplitude, double frequency);
+
+// Every amplitude that balances the host at `frequency`, ascending in the damper's amplitude;
+// each root's response is `s`'s reported displacement. Throws InputError naming the frequency
+// when the balance's root lies outside the map's amplitudes (below its smallest or above its
+// largest) or the frequency outside its frequencies.
+std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const LinearStructure& s,
+                                     const HostAt& host, double frequency);
 
 struct PredictOptions {
   std::vector<std::string> maps;  // the map files (one damper's, read as one map)
@@ -65,7 +82,8 @@ struct PredictOptions {
   bool force = false;
 };
 
-// The deck's FRF (an SDOF under a force stepped sine) from the maps; writes /frf_hb. With
+// The deck's FRF (its structure with one damper, a stepped sine or sine) from the maps; writes
+// /frf_hb. With
 // amplitudes stepped up and down in the map, the roots of each way are reported (branches a
 // slow rise or fall of the amplitude finds).
 RunReport run_predict(const Deck& deck, const PredictOptions& options);

@@ -15,7 +15,29 @@ using namespace pdsim;
 
 namespace {
 
-const SdofHost kHost{1.0, 1e4, 0.5, 1.0};  // kg, N/m (15.9 Hz), N s/m, N
+struct Sdof {
+  double mass, stiffness, damping, force;
+};
+const Sdof kHost{1.0, 1e4, 0.5, 1.0};  // kg, N/m (15.9 Hz), N s/m, N
+
+// An SDOF as build_structure() makes one, its damper on the mass.
+LinearStructure sdof(const Sdof& h) {
+  LinearStructure s;
+  s.mass = Eigen::MatrixXd::Constant(1, 1, h.mass);
+  s.stiffness = Eigen::MatrixXd::Constant(1, 1, h.stiffness);
+  s.damping = Eigen::MatrixXd::Constant(1, 1, h.damping);
+  s.force_shape = s.base_influence = Eigen::VectorXd::Ones(1);
+  s.attachment_translation = Eigen::MatrixXd::Ones(1, 1);
+  s.attachment_rotation = Eigen::MatrixXd::Zero(1, 1);
+  s.response = Eigen::RowVectorXd::Ones(1);
+  return s;
+}
+
+// The roots of `map` on the SDOF `h` under its force at f Hz.
+std::vector<HbRoot> balance(const MapInterpolant& map, double f, const Sdof& h = kHost) {
+  const LinearStructure s = sdof(h);
+  return harmonic_balance(map, s, host_at(s, ExcitationInput::force, h.force, f), f);
+}
 
 // A map at `frequencies` and `amplitudes` whose effective mass and damping are m(f, X), c(f, X).
 MapTable synthetic_map(const std::vector<double>& frequencies,
@@ -54,13 +76,38 @@ TEST_CASE("harmonic balance: a constant effective mass and damping give the host
     const double w = 2 * kPi * f;
     const std::complex<double> d(kHost.stiffness - (kHost.mass + m0) * w * w,
                                  w * (kHost.damping + c0));
-    const std::vector<HbRoot> roots = harmonic_balance(map, kHost, f);
+    const std::vector<HbRoot> roots = balance(map, f);
     REQUIRE(roots.size() == 1);
     CHECK(roots[0].amplitude == doctest::Approx(kHost.force / std::abs(d)).epsilon(1e-9));
     CHECK(roots[0].phase == doctest::Approx(-std::arg(d)).epsilon(1e-9));
     CHECK(roots[0].stable);
     CHECK(roots[0].amplitude_ci > 0);
     CHECK(roots[0].amplitude_ci < 0.1 * roots[0].amplitude);
+  }
+}
+
+// Under base motion Y sin(w t) the map's damper moves with the mass's absolute motion Y + Q, and
+// the FRF reports the relative Q: (K - M w^2 + i w C) Q + Z (Y + Q) = M w^2 Y for the damper's
+// impedance Z = -m w^2 + i w c.
+TEST_CASE("harmonic balance: a base-driven SDOF with a constant damper, relative and absolute") {
+  const double m0 = 0.1, c0 = 2.0, y = 1e-4;
+  const MapInterpolant map(synthetic_map(
+      {10, 20}, {1e-7, 1e-1}, [&](double, double) { return m0; },
+      [&](double, double) { return c0; }));
+  const LinearStructure s = sdof(kHost);
+  for (double f : {12.0, 15.9, 19.0}) {
+    CAPTURE(f);
+    const double w = 2 * kPi * f;
+    const std::complex<double> z(-m0 * w * w, w * c0);
+    const std::complex<double> q =
+        (kHost.mass * w * w - z) * y /
+        (std::complex<double>(kHost.stiffness - kHost.mass * w * w, w * kHost.damping) + z);
+    const std::vector<HbRoot> roots =
+        harmonic_balance(map, s, host_at(s, ExcitationInput::base_displacement, y, f), f);
+    REQUIRE(roots.size() == 1);
+    CHECK(roots[0].amplitude == doctest::Approx(std::abs(q)).epsilon(1e-9));
+    CHECK(roots[0].phase == doctest::Approx(std::arg(q)).epsilon(1e-9));
+    CHECK(roots[0].damper_amplitude == doctest::Approx(std::abs(y + q)).epsilon(1e-9));
   }
 }
 
@@ -84,7 +131,7 @@ TEST_CASE("harmonic balance: the ways up and down of a stepped map are read apar
     CAPTURE(sweep);
     const std::complex<double> d(kHost.stiffness - (kHost.mass + mass) * w * w,
                                  w * (kHost.damping + c0));
-    const std::vector<HbRoot> roots = harmonic_balance(MapInterpolant(map, sweep), kHost, f);
+    const std::vector<HbRoot> roots = balance(MapInterpolant(map, sweep), f);
     REQUIRE(roots.size() == 1);
     CHECK(roots[0].amplitude == doctest::Approx(kHost.force / std::abs(d)).epsilon(1e-9));
   }
@@ -96,7 +143,7 @@ TEST_CASE(
   // c_eff = 4 Ff / (pi w X). Without other damping the balance is
   // ((K - M w^2) X)^2 + (4 Ff / pi)^2 = F0^2 (Den Hartog 1931).
   const double ff = 0.2;
-  SdofHost host = kHost;
+  Sdof host = kHost;
   host.damping = 0;
   const MapInterpolant map(synthetic_map(
       {10, 20}, {1e-6, 1e-1}, [](double, double) { return 0.0; },
@@ -106,15 +153,15 @@ TEST_CASE(
     const double w = 2 * kPi * f;
     const double expected = std::sqrt(host.force * host.force - std::pow(4 * ff / kPi, 2)) /
                             std::abs(host.stiffness - host.mass * w * w);
-    const std::vector<HbRoot> roots = harmonic_balance(map, host, f);
+    const std::vector<HbRoot> roots = balance(map, f, host);
     REQUIRE(roots.size() == 1);
     CHECK(roots[0].amplitude == doctest::Approx(expected).epsilon(1e-3));
   }
   // At resonance friction alone cannot hold a force above 4 Ff / pi: no root within the map,
   // refused rather than extrapolated.
-  CHECK_THROWS_WITH_AS(harmonic_balance(map, host, std::sqrt(1e4) / (2 * kPi)),
+  CHECK_THROWS_WITH_AS(balance(map, std::sqrt(1e4) / (2 * kPi), host),
                        doctest::Contains("above the map's largest"), InputError);
-  CHECK_THROWS_WITH_AS(harmonic_balance(map, host, 25.0),
+  CHECK_THROWS_WITH_AS(balance(map, 25.0, host),
                        doctest::Contains("outside the map's frequencies (10 to 20 Hz)"),
                        InputError);
   // Amplitudes that do not overlap between two map frequencies (an acceleration grid spread
@@ -124,8 +171,8 @@ TEST_CASE(
   const MapTable high = synthetic_map(
       {20}, {1e-4, 2e-4}, [](double, double) { return 0.0; }, [](double, double) { return 1.0; });
   append_rows(apart, high);
-  CHECK_THROWS_WITH_AS(harmonic_balance(MapInterpolant(apart), kHost, 15.0),
-                       doctest::Contains("do not overlap"), InputError);
+  CHECK_THROWS_WITH_AS(balance(MapInterpolant(apart), 15.0), doctest::Contains("do not overlap"),
+                       InputError);
 }
 
 TEST_CASE("harmonic balance: a softening load has three amplitudes below resonance") {
@@ -146,7 +193,7 @@ TEST_CASE("harmonic balance: a softening load has three amplitudes below resonan
   for (std::size_t k = 1; k < scan.size(); ++k)
     if ((h(scan[k - 1]) < 0) != (h(scan[k]) < 0)) expected.push_back(scan[k]);
   REQUIRE(expected.size() == 3);
-  const std::vector<HbRoot> roots = harmonic_balance(map, kHost, f);
+  const std::vector<HbRoot> roots = balance(map, f);
   REQUIRE(roots.size() == 3);
   for (std::size_t b = 0; b < 3; ++b) {
     CAPTURE(b);

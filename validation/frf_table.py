@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Print a stepped-sine FRF's ensemble as a Markdown table, one row per point.
 
-Usage: validation/frf_table.py OUT.h5 [--reference LONG.h5]
+Usage: validation/frf_table.py OUT.h5 [--reference LONG.h5] [--hb HB.h5]
 
 Columns: frequency (and sweep when the file has both), /frf/result, fills, branches, the
 ensemble mean amplitude (mm) with its 95 % half-width and the prediction half-width (where one
@@ -13,6 +13,12 @@ ran (a fill that held still at settle.max_periods without meeting the tolerance 
 14, 15 and 16 Hz). For each of its frequencies the table below the first says whether the
 ensemble mean lies within the reference's interval and within 3 %, and whether the prediction
 interval (mean +- amplitude_spread) holds every long fill.
+
+--hb HB.h5: a prediction of the same deck from a damper map (pdsim predict, /frf_hb). The table
+below the first gives, per frequency, the coupled mean with its interval and its fills, every
+stable predicted root (mm, 95 %; "up"/"down" for a map's amplitudes stepped up or down), the
+difference of the root nearest the mean, and how many of the fills lie on a predicted root (within
+the root's interval or 3 %, whichever is wider).
 """
 import argparse
 import sys
@@ -36,10 +42,39 @@ def fills_at(fills, frequency, sweep):
     return np.flatnonzero((fills["frequency"] == frequency) & (fills["sweep"] == sweep))
 
 
+RESULTS = {0: "not a result", 1: "one state", 2: "branches"}
+WAYS = {0: "", 1: " up", -1: " down"}
+
+
+def prediction(frf, fills, hb):
+    """The coupled FRF against the stable roots of a harmonic-balance prediction."""
+    print()
+    print("| f (Hz) | coupled mean (mm, 95 %) | coupled point | its fills (mm) | "
+          "predicted, stable (mm, 95 %) | nearest root | fills on a root |")
+    print("|---|---|---|---|---|---|---|")
+    sweep_of = hb.get("sweep", np.zeros(len(hb["frequency"]), dtype=int))
+    for i, f in enumerate(frf["frequency"]):
+        mean, ci = frf["amplitude"][i], frf["amplitude_ci"][i]
+        values = fills["amplitude"][fills_at(fills, f, frf["sweep"][i])]
+        rows = np.flatnonzero(np.isclose(hb["frequency"], f) & (hb["stable"] == 1))
+        roots = hb["amplitude"][rows]
+        widths = np.maximum(hb["amplitude_ci"][rows], 0.03 * roots)
+        text = ", ".join(f"{hb['amplitude'][k] * 1e3:.4f} +- {hb['amplitude_ci'][k] * 1e3:.4f}"
+                         f"{WAYS[int(sweep_of[k])]}" for k in rows) or "none"
+        nearest = f"{100 * (roots[np.argmin(np.abs(roots - mean))] - mean) / mean:+.1f} %" \
+            if roots.size else "-"
+        on = sum(bool(np.any(np.abs(v - roots) <= widths)) for v in values)
+        print(f"| {f:g} | {mean * 1e3:.4f} +- {ci * 1e3:.4f} | "
+              f"{RESULTS.get(int(frf['result'][i]), '?')} | "
+              f"{', '.join(f'{v * 1e3:.3f}' for v in values)} | {text} | {nearest} | "
+              f"{on} of {len(values)} |")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("file")
     parser.add_argument("--reference", help="a run of the same deck with long fills")
+    parser.add_argument("--hb", help="a pdsim predict output of the same deck")
     args = parser.parse_args()
     frf, fills = table(args.file, "frf"), table(args.file, "frf/fills")
     both = len(set(frf["sweep"])) > 1
@@ -59,6 +94,8 @@ def main():
               f"{frf['branches'][i]} | {mean * 1e3:.4f} | "
               f"{100 * frf['amplitude_ci'][i] / mean:.2f} % | "
               f"{100 * frf['amplitude_spread'][i] / mean:.1f} % | {', '.join(own)} |")
+    if args.hb:
+        prediction(frf, fills, table(args.hb, "frf_hb"))
     if not args.reference:
         return
     long_frf, long_fills = table(args.reference, "frf"), table(args.reference, "frf/fills")

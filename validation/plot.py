@@ -172,7 +172,7 @@ def damper_map(args):
     bottom.set_xlabel("motion amplitude (mm)")
     bottom.set_xscale("log")
     top.legend(fontsize="x-small", ncol=2)
-    stepped = "; amplitudes stepped up (^) and down (v, dashed)" if (sweep != 0).any() else ""
+    stepped = "; stepped up ^, down v --" if (sweep != 0).any() else ""
     top.set_title(f"{title}: damper map; error bars: 95 % confidence{stepped}", fontsize="small")
     for axes in (top, bottom):
         axes.grid(True, alpha=0.3)

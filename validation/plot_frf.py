@@ -384,6 +384,8 @@ def plot_hb(amplitude_axes, phase_axes, path, scale, color):
     label = f"harmonic balance ({os.path.basename(path)})"
     if hb["sweep"] is None:  # older predictions had one map, from the settled bed
         hb["sweep"] = np.zeros(len(hb["frequency"]), dtype=int)
+    if (hb["sweep"] != 0).any():
+        label = label[:-1] + "; ^ its map stepped up, v down)"
     # Roots from a map stepped up: solid line, triangles up; stepped down: dashed, triangles
     # down; from points run from the settled bed: solid, squares.
     styles = {0: ("-", "s"), 1: ("-", "^"), -1: ("--", "v")}

@@ -230,7 +230,7 @@ void append_rows(MapTable& to, const MapTable& from);
 
 struct HbTable {
   std::vector<double> frequency, amplitude, amplitude_ci, phase, damper_amplitude, effective_mass,
-      effective_damping;
+      effective_damping, map_change;
   std::vector<int> sweep, branch, stable;
 };
 template <class T, class F>
@@ -252,6 +252,9 @@ void hb_columns(T& t, F&& f) {
     "the damper's container motion X at the root (the map's amplitude)");
   f("effective_mass", t.effective_mass, "kg", "the map's effective mass at this amplitude");
   f("effective_damping", t.effective_damping, "N s/m", "the map's effective damping here");
+  f("map_change", t.map_change, "1",
+    "|change| of the map's impedance F1 / X across the amplitudes the root lies between, over "
+    "the larger: above 0.5 the map is too coarse there to trust straight lines");
 }
 
 struct PeriodTable {  // one row per period run, per frequency and realisation

@@ -30,6 +30,9 @@ class MapInterpolant {
   MapInterpolant(const MapTable& map, int sweep = 0);
   struct Value {
     double mass = 0, damping = 0, mass_ci = 0, damping_ci = 0;  // kg, N s/m
+    // N/m: how far the map's impedance F1 / X moves between the two amplitudes read between
+    // (the larger of the two frequencies'): what straight lines there may miss.
+    double step = 0;
   };
   // The amplitudes the map covers at `frequency` (m), {0, 0} outside its frequencies.
   std::pair<double, double> amplitudes(double frequency) const;
@@ -50,6 +53,9 @@ class MapInterpolant {
 struct HbRoot {
   // The structure's response (the FRF's, see HostAt::response) and the damper's own amplitude.
   double amplitude = 0, amplitude_ci = 0, phase = 0, damper_amplitude = 0;  // m, m, rad, m
+  // |step H / (1 + (Z - Z0) H)|: the share of the balance the map's cell spans, about the
+  // largest relative change of the amplitude that reading the cell by straight lines may hide.
+  double map_change = 0;
   bool stable = false;
   MapInterpolant::Value damper;
 };

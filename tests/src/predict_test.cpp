@@ -83,7 +83,23 @@ TEST_CASE("harmonic balance: a constant effective mass and damping give the host
     CHECK(roots[0].stable);
     CHECK(roots[0].amplitude_ci > 0);
     CHECK(roots[0].amplitude_ci < 0.1 * roots[0].amplitude);
+    CHECK(roots[0].map_change == 0);  // one impedance at every amplitude: nothing to miss
   }
+}
+
+// How much a map cell may hide: for an SDOF, the step of the impedance across the cell over the
+// whole dynamic stiffness there, |dZ| / |K - M w^2 + i w C + Z|.
+TEST_CASE("harmonic balance: a root read across a step of the map names the step's share") {
+  const double c1 = 1.0, c2 = 11.0;
+  const MapInterpolant map(synthetic_map(
+      {15}, {1e-6, 1e-2}, [](double, double) { return 0.0; },
+      [&](double, double x) { return x < 1e-3 ? c1 : c2; }));
+  const double f = 15.0, w = 2 * kPi * f;
+  const std::vector<HbRoot> roots = balance(map, f);
+  REQUIRE(roots.size() == 1);
+  const std::complex<double> z(-roots[0].damper.mass * w * w, w * roots[0].damper.damping);
+  const std::complex<double> d(kHost.stiffness - kHost.mass * w * w, w * kHost.damping);
+  CHECK(roots[0].map_change == doctest::Approx(w * (c2 - c1) / std::abs(d + z)).epsilon(1e-9));
 }
 
 // Under base motion Y sin(w t) the map's damper moves with the mass's absolute motion Y + Q, and

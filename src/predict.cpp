@@ -344,8 +344,9 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   if (maps.size() > 1) s << ", " << apart << " where the map's ways up and down give other states";
   s << "; ";
   if (!coarse.empty()) {
-    s << "the map is coarse (its impedance changes by more than " << kCoarse * 100
-      << " % between the amplitudes a root lies between; map more amplitudes there) at";
+    s << "the map is coarse (between the amplitudes a root lies between its impedance moves by "
+         "more than "
+      << kCoarse * 100 << " % of the balance, /frf_hb/map_change; map more amplitudes there) at";
     for (double f : coarse) s << " " << number(f);
     s << " Hz; ";
   }

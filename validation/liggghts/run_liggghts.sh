@@ -15,6 +15,8 @@
 #   KEEP_DIR=<dir>     run in <dir> (kept) instead of a temporary directory
 #   THERMO=<k>         thermo output interval in steps, default STEPS
 #   JITTER_Y=<m>       random y displacement of the lattice (diagnostic; see make_lattice_data.py)
+#   AMPLITUDE=<m>, FREQUENCY=<Hz>, DT=<s>  the box's motion and the step instead of the scene's
+#                      (a damper map point; power_force.py needs whole periods of DT)
 #   MPIRUN_FLAGS       extra mpirun flags
 # output: liggghts scene=<s> particles=<n> ranks=<np> steps=<k> wall_s=<loop time>
 #         particle_steps_per_s=<r> total_wall_s=<process wall time incl. start-up and input>
@@ -22,7 +24,7 @@
 set -euo pipefail
 
 if [[ $# -ne 3 ]]; then
-  sed -n "2,21p" "$0" >&2
+  sed -n "2,23p" "$0" >&2
   exit 2
 fi
 scene=$1 ranks=$2 steps=$3
@@ -39,6 +41,8 @@ case $scene in
     amplitude=0.001 period=0.0666666666666667 ;;
   *) echo "unknown scene '$scene' (a, b, c or p)" >&2; exit 2 ;;
 esac
+amplitude=${AMPLITUDE:-$amplitude} dt=${DT:-$dt}
+[[ -n ${FREQUENCY:-} ]] && period=$(python3 -c "print(repr(1.0 / float('$FREQUENCY')))")
 
 binary=$(command -v liggghts || compgen -c lmp_ | head -n1 || true)
 [[ -n $binary ]] || { echo "no liggghts or lmp_* binary on PATH (apt-get install liggghts)" >&2; exit 1; }

@@ -223,11 +223,11 @@ void map_columns(T& t, F&& f) {
   f("realisations", t.realisations, "1", "fills behind the point");
 }
 
-// A host's FRF predicted from a damper map by harmonic balance (`pdsim predict`): one row per
-// frequency and branch (every amplitude that balances the force there).
 // Appends `from`'s rows to `to`'s (one map of the points of several).
 void append_rows(MapTable& to, const MapTable& from);
 
+// A host's FRF predicted from a damper map by harmonic balance (`pdsim predict`): one row per
+// frequency, way of the map and branch (every amplitude that balances the drive there).
 struct HbTable {
   std::vector<double> frequency, amplitude, amplitude_ci, phase, damper_amplitude, effective_mass,
       effective_damping, map_change;
@@ -240,21 +240,22 @@ void hb_columns(T& t, F&& f) {
     "the map's rows the root is from: 0 its points from the settled bed, +1 its amplitudes "
     "stepped up, -1 stepped down");
   f("branch", t.branch, "1",
-    "the balance's roots at this frequency and sweep, from 0 = the lowest amplitude");
+    "the balance's roots at this frequency and sweep, from 0 = the lowest damper amplitude");
   f("amplitude", t.amplitude, "m",
     "first-harmonic displacement amplitude of the structure's response point (as /frf)");
   f("amplitude_ci", t.amplitude_ci, "m",
-    "95 % half-width from the map's intervals, to first order (infinite at a turning point)");
-  f("phase", t.phase, "rad", "x = amplitude sin(angle + phase) against the force F0 sin(angle)");
+    "95 % half-width from the map's intervals, to first order (large near a turning point)");
+  f("phase", t.phase, "rad", "x = amplitude sin(angle + phase) against the drive's sin(angle)");
   f("stable", t.stable, "1",
-    "1 when the root is stable to slow changes of amplitude (d(X |1 + Z(X) H|)/dX > 0)");
+    "1 when the root is stable to slow changes of amplitude (d(X |1 + (Z(X) - Z0) H|)/dX > 0)");
   f("damper_amplitude", t.damper_amplitude, "m",
     "the damper's container motion X at the root (the map's amplitude)");
   f("effective_mass", t.effective_mass, "kg", "the map's effective mass at this amplitude");
   f("effective_damping", t.effective_damping, "N s/m", "the map's effective damping here");
   f("map_change", t.map_change, "1",
-    "|change| of the map's impedance F1 / X across the amplitudes the root lies between, over "
-    "the larger: above 0.5 the map is too coarse there to trust straight lines");
+    "how far the map's impedance F1 / X moves across the amplitudes the root lies between, as a "
+    "share of the balance there: above 0.5 the map is too coarse there to read by straight "
+    "lines");
 }
 
 struct PeriodTable {  // one row per period run, per frequency and realisation

@@ -65,11 +65,16 @@ Deck prescribed_run(const Deck& deck, const Vec3& axis, const std::vector<double
   return d;
 }
 
+// The amplitude (m) of a peak acceleration of g (in kStandardGravity) at f Hz.
+double amplitude_of(double g, double f) {
+  const double w = 2 * kPi * f;
+  return g * kStandardGravity / (w * w);
+}
+
 // The map's amplitudes at frequency f, ascending (m).
 std::vector<double> amplitudes_at(const MapSpec& m, double f) {
   std::vector<double> a = m.amplitudes;
-  const double w = 2 * kPi * f;
-  for (double g : m.accelerations) a.push_back(g * kStandardGravity / (w * w));
+  for (double g : m.accelerations) a.push_back(amplitude_of(g, f));
   std::sort(a.begin(), a.end());
   return a;
 }
@@ -118,10 +123,7 @@ std::vector<Deck> map_runs(const Deck& deck, const std::string& folder) {
                         std::vector<int>(m.frequencies.size(), 1)});
   } else {
     for (double g : m.accelerations)
-      for (double f : m.frequencies) {
-        const double w = 2 * kPi * f;
-        points.push_back({{f}, {g * kStandardGravity / (w * w)}, {1}});
-      }
+      for (double f : m.frequencies) points.push_back({{f}, {amplitude_of(g, f)}, {1}});
   }
   std::vector<Deck> runs;
   for (std::size_t k = 0; k < points.size(); ++k) {
@@ -139,9 +141,12 @@ MapTable map_rows(const std::vector<Deck>& runs, const std::vector<Results>& res
   for (std::size_t k = 0; k < runs.size(); ++k) {
     const bool stepped = runs[k].excitation.start == FrequencyStart::carried;
     const PrescribedTable& p = results[k].prescribed;
+    // Runs written before /prescribed had amplitude and sweep: the run's deck says them.
+    const bool old = p.amplitude.size() != p.frequency.size();
     for (std::size_t i = 0; i < p.frequency.size(); ++i) {
-      const double w = 2 * kPi * p.frequency[i], X = p.amplitude[i];
-      m.sweep.push_back(stepped ? p.sweep[i] : 0);
+      const double w = 2 * kPi * p.frequency[i];
+      const double X = old ? point_amplitude(runs[k].excitation, i) : p.amplitude[i];
+      m.sweep.push_back(!stepped ? 0 : old ? runs[k].excitation.sweeps[i] : p.sweep[i]);
       const double F = p.force_amplitude[i], dF = p.force_amplitude_ci[i];
       const double phi = p.force_phase[i], dphi = p.force_phase_ci[i];
       const double c = std::cos(phi), s = std::sin(phi);
@@ -181,7 +186,10 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
     try {
       build_scene(run, threads, backend);
     } catch (const InputError& e) {
-      throw InputError(std::string(e.what()) + " (in [map], at amplitude " + number(x) + " m)");
+      throw InputError(std::string(e.what()) + " (in [map], " +
+                       (run.excitation.amplitudes.empty()
+                            ? "at amplitude " + number(x) + " m)"
+                            : "at " + number(run.excitation.frequencies.front()) + " Hz)"));
     }
   }
   const MapSpec& m = deck.map;
@@ -189,9 +197,9 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
   std::ostringstream s;
   s << "map: " << (m.amplitudes.empty() ? m.accelerations.size() : m.amplitudes.size())
     << (m.amplitudes.empty() ? " accelerations" : " amplitudes") << " x " << m.frequencies.size()
-    << " frequencies = " << points << " points in " << runs.size()
-    << " runs; prescribed motion along [" << axis.x << ", " << axis.y << ", " << axis.z
-    << "], amplitude " << number(low) << " to " << number(high) << " m"
+    << " frequencies" << (m.steps == MapSteps::both ? " x 2 ways" : "") << " = " << points
+    << " points in " << runs.size() << " runs; prescribed motion along [" << axis.x << ", "
+    << axis.y << ", " << axis.z << "], amplitude " << number(low) << " to " << number(high) << " m"
     << (m.steps == MapSteps::both ? ", stepped up and down at each frequency"
         : m.steps == MapSteps::up ? ", stepped up at each frequency"
                                   : ", each point from the settled bed")

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <complex>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -27,18 +28,27 @@ bool same_frequency(double a, double b) {
 
 constexpr int kScanPoints = 2000;  // log-spaced amplitudes searched for sign changes
 constexpr int kBisections = 80;
-// A root read where the map's impedance changes by more than this across the cell is named: on
-// the beam damper a cell of 4-7 mm through the onset of impacts (change 0.8) put the peak 17 %
-// low, and points every 0.5 mm there brought it within 3 %.
+// A root whose map_change exceeds this is named: on the beam damper a cell of 4-7 mm through the
+// onset of impacts (map_change 1.0-1.4) put the peak 8-17 % low; with points every 0.5 mm there
+// (at most 0.34) it was within 3 %.
 constexpr double kCoarse = 0.5;
+
+// "" for points run from the settled bed, else the way the amplitudes were stepped.
+std::string way(int sweep) {
+  return sweep > 0 ? " (stepped up)" : sweep < 0 ? " (stepped down)" : "";
+}
 
 }  // namespace
 
 MapInterpolant::MapInterpolant(const MapTable& map, int sweep) {
   std::map<double, Row> by_frequency;
   for (std::size_t i = 0; i < map.frequency.size(); ++i) {
-    if (map.sweep[i] != sweep) continue;
-    const double f = map.frequency[i], x = map.amplitude[i], w = 2 * kPi * f;
+    if (map.sweep.at(i) != sweep) continue;
+    double f = map.frequency[i];
+    // Maps merged from a {start, stop, step} table and a list hold 13.3 as two doubles.
+    for (const auto& [g, row] : by_frequency)
+      if (same_frequency(f, g)) f = g;
+    const double x = map.amplitude[i], w = 2 * kPi * f;
     if (!(f > 0) || !(x > 0) || !std::isfinite(map.effective_mass[i]) ||
         !std::isfinite(map.effective_damping[i]))
       throw InputError("the map's row " + std::to_string(i) +
@@ -61,10 +71,7 @@ MapInterpolant::MapInterpolant(const MapTable& map, int sweep) {
     for (std::size_t k : order) {
       if (!sorted.amplitude.empty() && sorted.amplitude.back() == r.amplitude[k])
         throw InputError("the map holds amplitude " + number(r.amplitude[k]) + " m twice at " +
-                         number(f) + " Hz" +
-                         (sweep > 0   ? " (stepped up)"
-                          : sweep < 0 ? " (stepped down)"
-                                      : ""));
+                         number(f) + " Hz" + way(sweep));
       sorted.amplitude.push_back(r.amplitude[k]);
       sorted.real.push_back(r.real[k]);
       sorted.imag.push_back(r.imag[k]);
@@ -215,6 +222,8 @@ std::vector<HbRoot> harmonic_balance(const MapInterpolant& map, const LinearStru
       };
       r.amplitude_ci = std::hypot(moved({-w * w * r.damper.mass_ci, 0.0}),
                                   moved({0.0, w * r.damper.damping_ci}));
+      // A turning point (slope 0) or a map point without an interval: no bound.
+      if (!std::isfinite(r.amplitude_ci)) r.amplitude_ci = std::numeric_limits<double>::infinity();
       roots.push_back(r);
     }
     a = b, ha = hb;
@@ -237,25 +246,27 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
                      "expected \"stepped_sine\" or \"sine\" for pdsim predict");
   // The maps as one: their rows together, of one damper (the deck's).
   Results source;
-  const Scene scene = build_scene(deck);
+  // Built on the CPU: a prediction needs no device, whatever the deck's backend.
+  const Scene scene = build_scene(deck, 1, Backend::cpu);
   const std::string damper = damper_fingerprint(scene);
   for (const std::string& file : options.maps) {
     if (!fs::exists(file)) throw InputError(file + ": no such map file");
     Results one = read_results(file);
     if (one.map.frequency.empty())
       throw InputError(file + ": holds no /map (a file that pdsim map writes)");
+    if (!one.meta_text.count("damper") || one.map.sweep.size() != one.map.frequency.size())
+      throw InputError(file +
+                       ": a map from a pdsim before maps recorded their damper; make it again "
+                       "from its finished runs with pdsim map DECK --resume (its runs are kept)");
     if (one.meta_text["damper"] != damper)
       throw InputError(file +
                        ": a map of another damper than the deck's (containers, contact "
                        "laws and constants, particles' sizes, density or gravity differ)");
     append_rows(source.map, one.map);
   }
-  std::vector<int> sweeps = source.map.sweep;
-  std::sort(sweeps.begin(), sweeps.end());
-  sweeps.erase(std::unique(sweeps.begin(), sweeps.end()), sweeps.end());
   std::vector<std::pair<int, MapInterpolant>> maps;
   for (int sweep : {0, 1, -1})
-    if (std::binary_search(sweeps.begin(), sweeps.end(), sweep))
+    if (std::count(source.map.sweep.begin(), source.map.sweep.end(), sweep))
       maps.emplace_back(sweep, MapInterpolant(source.map, sweep));
   std::string names;
   for (const std::string& file : options.maps) names += (names.empty() ? "" : ", ") + file;
@@ -275,20 +286,25 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   std::vector<double> coarse;          // frequencies with a root where the map is coarse
   for (double f : frequencies) {
     bool many = false, coarse_here = false;
-    std::vector<const HbRoot*> stable;
-    std::vector<std::vector<HbRoot>> found;
-    // Each way of the map that has the frequency gives its roots (a stepped map may cover
-    // only the resonance); a frequency that none has is refused with the first one's reason.
-    bool covered = false;
-    for (const auto& [sweep, map] : maps) covered = covered || map.amplitudes(f).second > 0;
+    std::vector<std::pair<int, const HbRoot*>> stable;  // (sweep, root)
     const HostAt host = host_at(structure, x.input, x.amplitude, f);
-    try {
-      for (const auto& [sweep, map] : maps)
-        found.push_back(!covered || map.amplitudes(f).second > 0
-                            ? harmonic_balance(map, structure, host, f)
-                            : std::vector<HbRoot>{});
-    } catch (const InputError& e) {
-      refused.push_back(e.what());
+    if (!std::isfinite(std::abs(host.receptance)) || !std::isfinite(std::abs(host.bare))) {
+      refused.push_back("at " + number(f) +
+                        " Hz the structure's response at the damper is not finite (an undamped "
+                        "mode there)");
+      continue;
+    }
+    // Each way of the map gives the roots it can (a stepped map may cover only the resonance,
+    // or only some amplitudes); a frequency that no way can solve is refused with their reasons.
+    std::vector<std::vector<HbRoot>> found(maps.size());
+    std::vector<std::string> reasons;
+    for (std::size_t m = 0; m < maps.size(); ++m) try {
+        found[m] = harmonic_balance(maps[m].second, structure, host, f);
+      } catch (const InputError& e) {
+        reasons.push_back(e.what() + way(maps[m].first));
+      }
+    if (reasons.size() == maps.size()) {
+      refused.insert(refused.end(), reasons.begin(), reasons.end());
       continue;
     }
     for (std::size_t m = 0; m < maps.size(); ++m) {
@@ -307,18 +323,20 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
         t.effective_damping.push_back(roots[b].damper.damping);
         t.map_change.push_back(roots[b].map_change);
         coarse_here = coarse_here || roots[b].map_change > kCoarse;
-        if (roots[b].stable) stable.push_back(&roots[b]);
+        if (roots[b].stable) stable.emplace_back(maps[m].first, &roots[b]);
       }
     }
     several += many ? 1 : 0;
     if (coarse_here) coarse.push_back(f);
-    // Stable roots of the two ways further apart than their intervals: the bed's hysteresis.
+    // Stable roots of the ways up and down further apart than their intervals: the bed's
+    // hysteresis (several roots of one way are branches, counted above).
     bool differ = false;
-    for (const HbRoot* a : stable)
-      for (const HbRoot* b : stable)
+    for (const auto& [way_a, a] : stable)
+      for (const auto& [way_b, b] : stable)
         differ =
-            differ || std::abs(a->amplitude - b->amplitude) > a->amplitude_ci + b->amplitude_ci;
-    apart += differ && maps.size() > 1 ? 1 : 0;
+            differ || (way_a > 0 && way_b < 0 &&
+                       std::abs(a->amplitude - b->amplitude) > a->amplitude_ci + b->amplitude_ci);
+    apart += differ ? 1 : 0;
   }
   if (!refused.empty()) {
     std::string what = names + " does not cover the deck's response (nothing written):";

@@ -231,7 +231,7 @@ void append_rows(MapTable& to, const MapTable& from);
 struct HbTable {
   std::vector<double> frequency, amplitude, amplitude_ci, phase, damper_amplitude, effective_mass,
       effective_damping, map_change;
-  std::vector<int> sweep, branch, stable;
+  std::vector<int> sweep, branch, stable, map_converged;
 };
 template <class T, class F>
 void hb_columns(T& t, F&& f) {
@@ -256,6 +256,8 @@ void hb_columns(T& t, F&& f) {
     "how far the map's impedance F1 / X moves across the amplitudes the root lies between, as a "
     "share of the balance there: above 0.5 the map is too coarse there to read by straight "
     "lines");
+  f("map_converged", t.map_converged, "1",
+    "1 when every map point the root is read from converged (/map/converged)");
 }
 
 struct PeriodTable {  // one row per period run, per frequency and realisation

@@ -61,13 +61,14 @@ MapInterpolant::MapInterpolant(const MapTable& map, int sweep) {
     r.imag.push_back(w * map.effective_damping[i] * x);
     r.real_ci.push_back(w * w * map.effective_mass_ci[i] * x);
     r.imag_ci.push_back(w * map.effective_damping_ci[i] * x);
+    r.converged.push_back(map.converged.at(i));
   }
   for (auto& [f, r] : by_frequency) {
     std::vector<std::size_t> order(r.amplitude.size());
     for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
     std::sort(order.begin(), order.end(),
               [&](std::size_t a, std::size_t b) { return r.amplitude[a] < r.amplitude[b]; });
-    Row sorted{f, {}, {}, {}, {}, {}};
+    Row sorted{f, {}, {}, {}, {}, {}, {}};
     for (std::size_t k : order) {
       if (!sorted.amplitude.empty() && sorted.amplitude.back() == r.amplitude[k])
         throw InputError("the map holds amplitude " + number(r.amplitude[k]) + " m twice at " +
@@ -77,6 +78,7 @@ MapInterpolant::MapInterpolant(const MapTable& map, int sweep) {
       sorted.imag.push_back(r.imag[k]);
       sorted.real_ci.push_back(r.real_ci[k]);
       sorted.imag_ci.push_back(r.imag_ci[k]);
+      sorted.converged.push_back(r.converged[k]);
     }
     if (sorted.amplitude.size() < 2)
       throw InputError("the map holds one amplitude at " + number(f) +
@@ -118,8 +120,9 @@ MapInterpolant::Value MapInterpolant::at_row(const Row& r, double x) const {
   auto z = [&](std::size_t i) {
     return std::complex<double>(r.real[i], r.imag[i]) / r.amplitude[i];
   };
-  return {lerp(r.real) / (w * w * x), lerp(r.imag) / (w * x), lerp(r.real_ci) / (w * w * x),
-          lerp(r.imag_ci) / (w * x), std::abs(z(k + 1) - z(k))};
+  return {lerp(r.real) / (w * w * x),    lerp(r.imag) / (w * x),
+          lerp(r.real_ci) / (w * w * x), lerp(r.imag_ci) / (w * x),
+          std::abs(z(k + 1) - z(k)),     r.converged[k] != 0 && r.converged[k + 1] != 0};
 }
 
 MapInterpolant::Value MapInterpolant::at(double frequency, double amplitude) const {
@@ -128,8 +131,9 @@ MapInterpolant::Value MapInterpolant::at(double frequency, double amplitude) con
   if (t == 0) return a;
   const Value b = at_row(rows_.at(j + 1), amplitude);
   auto lerp = [t = t](double u, double v) { return u + t * (v - u); };
-  return {lerp(a.mass, b.mass), lerp(a.damping, b.damping), lerp(a.mass_ci, b.mass_ci),
-          lerp(a.damping_ci, b.damping_ci), std::max(a.step, b.step)};
+  return {lerp(a.mass, b.mass),       lerp(a.damping, b.damping),
+          lerp(a.mass_ci, b.mass_ci), lerp(a.damping_ci, b.damping_ci),
+          std::max(a.step, b.step),   a.converged && b.converged};
 }
 
 HostAt host_at(const LinearStructure& s, ExcitationInput input, double amplitude,
@@ -284,8 +288,9 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   std::vector<std::string> refused;
   std::size_t several = 0, apart = 0;  // frequencies with several roots; up and down apart
   std::vector<double> coarse;          // frequencies with a root where the map is coarse
+  std::vector<double> unsettled;       // frequencies with a root read from unconverged points
   for (double f : frequencies) {
-    bool many = false, coarse_here = false;
+    bool many = false, coarse_here = false, unsettled_here = false;
     std::vector<std::pair<int, const HbRoot*>> stable;  // (sweep, root)
     const HostAt host = host_at(structure, x.input, x.amplitude, f);
     if (!std::isfinite(std::abs(host.receptance)) || !std::isfinite(std::abs(host.bare))) {
@@ -322,12 +327,15 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
         t.effective_mass.push_back(roots[b].damper.mass);
         t.effective_damping.push_back(roots[b].damper.damping);
         t.map_change.push_back(roots[b].map_change);
+        t.map_converged.push_back(roots[b].damper.converged ? 1 : 0);
+        unsettled_here = unsettled_here || !roots[b].damper.converged;
         coarse_here = coarse_here || roots[b].map_change > kCoarse;
         if (roots[b].stable) stable.emplace_back(maps[m].first, &roots[b]);
       }
     }
     several += many ? 1 : 0;
     if (coarse_here) coarse.push_back(f);
+    if (unsettled_here) unsettled.push_back(f);
     // Stable roots of the ways up and down further apart than their intervals: the bed's
     // hysteresis (several roots of one way are branches, counted above).
     bool differ = false;
@@ -368,6 +376,10 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
     for (double f : coarse) s << " " << number(f);
     s << " Hz; ";
   }
+  if (!unsettled.empty())
+    s << "at " << unsettled.size() << " of " << frequencies.size()
+      << " frequencies a root is read from map points that did not converge (wide intervals: "
+         "/frf_hb/map_converged); ";
   if (peak)
     s << "peak of the stable branches " << number(1e3 * t.amplitude[*peak]) << " mm at "
       << number(t.frequency[*peak]) << " Hz";

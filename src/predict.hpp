@@ -33,6 +33,7 @@ class MapInterpolant {
     // N/m: how far the map's impedance F1 / X moves between the two amplitudes read between
     // (the larger of the two frequencies'): what straight lines there may miss.
     double step = 0;
+    bool converged = true;  // every map point read here converged
   };
   // The amplitudes the map covers at `frequency` (m), {0, 0} outside its frequencies.
   std::pair<double, double> amplitudes(double frequency) const;
@@ -44,6 +45,7 @@ class MapInterpolant {
   struct Row {  // one map frequency
     double frequency;
     std::vector<double> amplitude, real, imag, real_ci, imag_ci;  // m; N (force components)
+    std::vector<int> converged;                                   // the map's /map/converged
   };
   Value at_row(const Row& r, double amplitude) const;
   std::pair<std::size_t, double> bracket(double frequency) const;  // lower row, weight of next

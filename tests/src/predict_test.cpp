@@ -49,6 +49,7 @@ MapTable synthetic_map(const std::vector<double>& frequencies,
     for (double x : amplitudes) {
       t.frequency.push_back(f);
       t.sweep.push_back(0);
+      t.converged.push_back(1);
       t.amplitude.push_back(x);
       t.effective_mass.push_back(mass(f, x));
       t.effective_damping.push_back(damping(f, x));
@@ -91,12 +92,15 @@ TEST_CASE("harmonic balance: a constant effective mass and damping give the host
 // whole dynamic stiffness there, |dZ| / |K - M w^2 + i w C + Z|.
 TEST_CASE("harmonic balance: a root read across a step of the map names the step's share") {
   const double c1 = 1.0, c2 = 11.0;
-  const MapInterpolant map(synthetic_map(
+  MapTable table = synthetic_map(
       {15}, {1e-6, 1e-2}, [](double, double) { return 0.0; },
-      [&](double, double x) { return x < 1e-3 ? c1 : c2; }));
+      [&](double, double x) { return x < 1e-3 ? c1 : c2; });
   const double f = 15.0, w = 2 * kPi * f;
-  const std::vector<HbRoot> roots = balance(map, f);
+  const std::vector<HbRoot> roots = balance(MapInterpolant(table), f);
   REQUIRE(roots.size() == 1);
+  CHECK(roots[0].damper.converged);
+  table.converged[1] = 0;  // a point read by the root that did not converge is said so
+  CHECK_FALSE(balance(MapInterpolant(table), f)[0].damper.converged);
   const std::complex<double> z(-roots[0].damper.mass * w * w, w * roots[0].damper.damping);
   const std::complex<double> d(kHost.stiffness - kHost.mass * w * w, w * kHost.damping);
   CHECK(roots[0].map_change == doctest::Approx(w * (c2 - c1) / std::abs(d + z)).epsilon(1e-9));

@@ -38,8 +38,15 @@ def write_data(path, count, diameter, density, box, margin_x, margin, jitter_y=0
         assert jitter_y < 0.005 * diameter
         rng = random.Random(1)
         centres = [(x, y + rng.uniform(-jitter_y, jitter_y), z) for x, y, z in centres]
+    write_centres(path, "pdsim lattice", centres, diameter, density, box, margin_x, margin)
+
+
+def write_centres(path, title, centres, diameter, density, box, margin_x, margin):
+    """The data file of spheres at `centres` (m, the box's frame [0, L])."""
+    lx, ly, lz = box
+    count = len(centres)
     lines = [
-        "pdsim lattice: %d spheres d=%g m in box %g x %g x %g m" % (count, diameter, lx, ly, lz),
+        "%s: %d spheres d=%g m in box %g x %g x %g m" % (title, count, diameter, lx, ly, lz),
         "",
         "%d atoms" % count,
         "1 atom types",

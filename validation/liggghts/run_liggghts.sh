@@ -17,6 +17,7 @@
 #   JITTER_Y=<m>       random y displacement of the lattice (diagnostic; see make_lattice_data.py)
 #   AMPLITUDE=<m>, FREQUENCY=<Hz>, DT=<s>  the box's motion and the step instead of the scene's
 #                      (a damper map point; power_force.py needs whole periods of DT)
+#   BED=<bed.h5>:<fill>  start from that fill of a bed pdsim settled instead of the lattice
 #   MPIRUN_FLAGS       extra mpirun flags
 # output: liggghts scene=<s> particles=<n> ranks=<np> steps=<k> wall_s=<loop time>
 #         particle_steps_per_s=<r> total_wall_s=<process wall time incl. start-up and input>
@@ -24,7 +25,7 @@
 set -euo pipefail
 
 if [[ $# -ne 3 ]]; then
-  sed -n "2,23p" "$0" >&2
+  sed -n "2,24p" "$0" >&2
   exit 2
 fi
 scene=$1 ranks=$2 steps=$3
@@ -58,8 +59,13 @@ fi
 # the domain must hold the mesh over its whole stroke: amplitude plus a diameter along x
 margin_x=0.01 margin=0.002
 python3 "$here/make_box_stl.py" "${box[@]}" "$workdir/box.stl"
-python3 "$here/make_lattice_data.py" "$count" "$diameter" 7800 "${box[@]}" "$margin_x" "$margin" \
-  "$workdir/lattice.data" "${JITTER_Y:-0}"
+if [[ -n ${BED:-} ]]; then
+  /usr/bin/python3 "$here/bed_data.py" "${BED%:*}" "${BED##*:}" "$diameter" 7800 "${box[@]}" \
+    "$margin_x" "$margin" "$workdir/lattice.data"
+else
+  python3 "$here/make_lattice_data.py" "$count" "$diameter" 7800 "${box[@]}" "$margin_x" "$margin" \
+    "$workdir/lattice.data" "${JITTER_Y:-0}"
+fi
 
 sample_prefix='#'
 [[ -n ${SAMPLE_EVERY:-} ]] && sample_prefix=''

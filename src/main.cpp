@@ -2,6 +2,7 @@
 // simulation failures exit 2; an interrupted run exits 130.
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 
 #include "pdsim_version.hpp"
@@ -164,6 +165,14 @@ int main(int argc, char** argv) {
       if (deck.sweep.points() > 0 && deck.point == 0)
         std::cout << pdsim::check_sweep(deck, options.threads, options.backend);
       if (deck.map.given()) std::cout << pdsim::check_map(deck, options.threads, options.backend);
+      // What a queued run would trip over only when it starts (a sweep makes its own folder).
+      if (deck.sweep.points() == 0 || deck.point > 0) {
+        const std::string out = pdsim::output_path(deck, options);
+        if (deck.point == 0) pdsim::check_output_path(out);
+        if (std::filesystem::exists(out))
+          std::cout << "note: " << out
+                    << " exists: pdsim run needs --force (or --resume where OUT.partial is)\n";
+      }
       std::cout << "deck OK\n";
       return 0;
     }

@@ -23,6 +23,21 @@ std::string output_path(const Deck& deck, const RunOptions& options) {
   return std::filesystem::path(deck.path).stem().string() + ".h5";
 }
 
+void check_output_path(const std::string& path) {
+  namespace fs = std::filesystem;
+  if (path.empty() || path.find('\0') != std::string::npos)
+    throw InputError("output file: expected a path without NUL characters, got '" + path + "'");
+  std::error_code ignored;  // a path that cannot be examined is treated as absent
+  if (fs::is_directory(path, ignored))
+    throw InputError(path + ": is a folder; expected the path of an output file");
+  const fs::path folder = fs::path(path).parent_path();
+  if (!folder.empty() && !fs::is_directory(folder, ignored))
+    throw InputError(path + ": the folder " + folder.string() + " does not exist");
+  const fs::path place = folder.empty() ? fs::path(".") : folder;
+  if (access(place.c_str(), W_OK | X_OK) != 0)
+    throw InputError(path + ": the folder " + place.string() + " is not writable");
+}
+
 std::string output_beside(const Deck& deck, const std::string& suffix) {
   const std::filesystem::path run = output_path(deck, RunOptions{});
   return (run.parent_path() / (run.stem().string() + suffix)).string();
@@ -78,20 +93,14 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
                      std::to_string(deck.sweep.points()) +
                      " points; run them all with `pdsim sweep`, or one with `pdsim run --point K`");
   // Everything about the output that can be known before computing is checked first.
-  if (path.empty() || path.find('\0') != std::string::npos)
-    throw InputError("output file: expected a path without NUL characters, got '" + path + "'");
   std::error_code ignored;  // a path that cannot be examined is treated as absent
-  if (fs::is_directory(path, ignored))
-    throw InputError(path + ": is a folder; expected the path of an output file");
+  const fs::path folder = fs::path(path).parent_path();
+  if (deck.point > 0 && !folder.empty() && path.find('\0') == std::string::npos)
+    fs::create_directories(folder, ignored);  // a sweep point's folder
+  check_output_path(path);
   if (fs::exists(path, ignored) && !options.force)
     throw InputError(path + ": output file exists; use --force to overwrite it");
-  const fs::path folder = fs::path(path).parent_path();
-  if (deck.point > 0 && !folder.empty()) fs::create_directories(folder, ignored);
-  if (!folder.empty() && !fs::is_directory(folder, ignored))
-    throw InputError(path + ": the folder " + folder.string() + " does not exist");
   const fs::path place = folder.empty() ? fs::path(".") : folder;
-  if (access(place.c_str(), W_OK | X_OK) != 0)
-    throw InputError(path + ": the folder " + place.string() + " is not writable");
   // A full disk costs no finished work (the last checkpoint survives), but say it early.
   if (const auto space = fs::space(place, ignored); space.available < kLowSpace)
     std::cerr << "warning: only " << space.available / (1 << 20) << " MiB free for " << path

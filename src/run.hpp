@@ -29,6 +29,9 @@ struct RunReport {
 
 // Output path: --output, else output.file, else the deck's name with ".h5".
 std::string output_path(const Deck& deck, const RunOptions& options);
+// Refuses an output path no run could write (empty, with NUL, a folder, in a folder that does
+// not exist or is not writable), naming it: what `pdsim check` and every run check first.
+void check_output_path(const std::string& path);
 // A file beside the deck's output named for it: "OUT.h5" -> "OUT<suffix>" ("_map.h5").
 std::string output_beside(const Deck& deck, const std::string& suffix);
 

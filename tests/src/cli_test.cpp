@@ -236,6 +236,26 @@ TEST_CASE("check passes on every example deck and every good test deck") {
   CHECK(box.files() == 0);
 }
 
+// What a queued run would trip over only when it starts is refused by check already.
+TEST_CASE("check refuses an output in a folder that does not exist, and notes an existing one") {
+  Sandbox box;
+  std::string text;
+  {
+    std::ifstream in(deck("tiny_stepped_sine.toml"));
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  text.replace(text.find("file = \"tiny.h5\""), 16, "file = \"nowhere/tiny.h5\"");
+  std::ofstream(box.dir / "lost.toml") << text;
+  std::string log;
+  CHECK(box.pdsim("check lost.toml", &log) == 1);
+  CHECK(log.find("nowhere/tiny.h5: the folder nowhere does not exist") != std::string::npos);
+  CHECK(log.find("deck OK") == std::string::npos);
+  fs::create_directories(box.dir / "nowhere");
+  std::ofstream(box.dir / "nowhere" / "tiny.h5") << "old";
+  CHECK(box.pdsim("check lost.toml", &log) == 0);
+  CHECK(log.find("nowhere/tiny.h5 exists: pdsim run needs --force") != std::string::npos);
+}
+
 TEST_CASE("a sweep runs every point side by side and tabulates the analytical SDOF response") {
   Sandbox box;
   // A bare SDOF driven at 15 Hz with 1 N: X = F / sqrt((K - M w^2)^2 + (c w)^2), c = 2 zeta

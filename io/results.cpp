@@ -673,6 +673,15 @@ FrfPeak frf_peak(const FrfTable& frf, const FillTable& fills) {
   return peak;
 }
 
+bool output_locked(const std::string& path) {
+  const std::string file = path + ".lock";
+  const int fd = open(file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  const bool held = flock(fd, LOCK_SH | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+  close(fd);
+  return held;
+}
+
 OutputLock::OutputLock(const std::string& path) : file_(path + ".lock") {
   // Locked, and still the file at that name: a lock taken on a file that the previous holder
   // removed meanwhile protects nothing, so try again on the new one.

@@ -415,6 +415,9 @@ class OutputLock {
   int fd_ = -1;
 };
 
+// Whether a pdsim holds the lock of output `path` now (a run writing it).
+bool output_locked(const std::string& path);
+
 // Reads a file written by write_results (finished or ".partial"). Throws on failure.
 Results read_results(const std::string& path);
 

@@ -77,6 +77,10 @@ int main(int argc, char** argv) {
   sweep->add_flag("--resume", sweep_options.resume,
                   "keep finished points and continue interrupted ones");
   sweep->add_flag("--force", sweep_options.force, "rerun every point, overwriting its file");
+  sweep->add_flag("--status", sweep_options.status,
+                  "run nothing: each point finished, running, interrupted, failed or not run");
+  sweep->add_flag("--collect", sweep_options.collect,
+                  "run nothing: summary.csv from the points that have finished, naming the rest");
 
   pdsim::MapOptions map_options;
   auto* map = app.add_subcommand(

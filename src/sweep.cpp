@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <iostream>
 #include <thread>
 #include <vector>
 
@@ -45,8 +46,10 @@ struct Point {
   bool resume = false;  // continue from the point's checkpoint
   bool kept = false;    // finished by an earlier sweep
   pid_t pid = 0;
-  int code = -1;  // exit code of its process
+  int code = -1;       // exit code of its process (kRunning: another process is running it)
+  std::string detail;  // why it failed, or how far an interrupted one came
 };
+constexpr int kRunning = -2;
 
 std::string last_line(const std::string& path) {
   std::ifstream in(path);
@@ -132,10 +135,11 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
       out << "," << csv(deck.sweep.values[k][choice[k]]);
     const bool finished = p.kept || p.code == 0;
     out << ","
-        << (finished        ? "finished"
-            : p.code == 130 ? "interrupted"
-            : p.code < 0    ? "not run"
-                            : "failed");
+        << (finished             ? "finished"
+            : p.code == 130      ? "interrupted"
+            : p.code == kRunning ? "running"
+            : p.code < 0         ? "not run"
+                                 : "failed");
     out << "," << csv(fs::path(p.file).filename().string());
     if (!finished) {
       out << "\n";
@@ -173,6 +177,69 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
   out.close();
   if (!out) throw SimulationError(path + ".partial: could not be written");
   fs::rename(path + ".partial", path);
+}
+
+// What a point's files say of it: finished (its file, of this point's deck), running (its
+// output's lock held), interrupted (a checkpoint, or a log without an error), failed (an error
+// in its log), or not run (nothing).
+void read_state(Point& p) {
+  std::error_code ignored;
+  if (fs::exists(p.file, ignored)) {
+    p.kept = read_results(p.file).meta_text["deck"] == p.deck.text;
+    if (!p.kept) p.code = 2, p.detail = "its file was run from another deck or point";
+    return;
+  }
+  if (output_locked(p.file)) {
+    p.code = kRunning;
+    return;
+  }
+  const std::string why = fs::exists(p.log, ignored) ? cause(p.log) : "";
+  const bool error = why.rfind("error: ", 0) == 0 || why.rfind("simulation failed: ", 0) == 0;
+  if (error && why.find("interrupted") == std::string::npos) {
+    p.code = 2, p.detail = why + " [" + p.log + "]";
+  } else if (fs::exists(p.file + ".partial", ignored)) {
+    p.code = 130, p.detail = "finished frequencies kept in " + p.file + ".partial";
+  } else if (fs::exists(p.log, ignored)) {
+    p.code = 130, p.detail = "stopped before its first frequency [" + p.log + "]";
+  }
+}
+
+// --status and --collect: the sweep's files read, nothing run.
+int read_sweep(const Deck& deck, const SweepOptions& o, const std::string& folder) {
+  const int count = deck.sweep.points();
+  std::vector<Point> points(static_cast<std::size_t>(count));
+  int finished = 0;
+  std::string missing;
+  for (int k = 1; k <= count; ++k) {
+    Point& p = points[static_cast<std::size_t>(k - 1)];
+    p.index = k;
+    p.deck = sweep_point(deck, k);
+    p.file = (fs::path(folder) / point_file(deck, k)).string();
+    p.log = p.file.substr(0, p.file.size() - 3) + ".log";
+    read_state(p);
+    finished += p.kept;
+    const std::string state = p.kept               ? "finished"
+                              : p.code == kRunning ? "running"
+                              : p.code == 130      ? "interrupted"
+                              : p.code == 2        ? "failed"
+                                                   : "not run";
+    if (o.status || !p.kept)
+      (o.status ? std::cout : std::cerr)
+          << "point " << k << "/" << count << " (" << deck.sweep.describe(k) << "): " << state
+          << (p.detail.empty() ? "" : ": " + p.detail) << "\n";
+    if (!p.kept) missing += (missing.empty() ? "" : ", ") + std::to_string(k);
+  }
+  if (o.collect) {
+    if (!fs::is_directory(folder)) throw InputError(folder + ": no such sweep folder");
+    const std::string summary = (fs::path(folder) / "summary.csv").string();
+    write_summary(deck, points, summary);
+    std::cout << finished << " of " << count << " points finished; summary in " << summary
+              << (missing.empty() ? "" : "; not finished: points " + missing) << "\n";
+  } else {
+    std::cout << finished << " of " << count << " points finished in " << folder << "/"
+              << (missing.empty() ? "" : "; not finished: points " + missing) << "\n";
+  }
+  return finished == count ? 0 : 2;
 }
 
 }  // namespace
@@ -236,6 +303,7 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
   if (count == 0)
     throw InputError(deck.path + ": the deck has no [sweep] table; run it with `pdsim run`");
   const std::string folder = o.folder.empty() ? sweep_folder(deck) : o.folder;
+  if (o.status || o.collect) return read_sweep(deck, o, folder);
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const int jobs = std::min(count, o.jobs > 0 ? o.jobs : cores);
   const int threads = o.threads > 0 ? o.threads : std::max(1, cores / jobs);

@@ -15,8 +15,10 @@ struct SweepOptions {
   int jobs = 0;        // points run at once; 0 = one per core, at most the number of points
   int threads = 0;     // threads per point; 0 = the cores shared out among the jobs
   std::optional<Backend> backend;
-  bool resume = false;  // keep finished points, resume interrupted ones
-  bool force = false;   // rerun every point
+  bool resume = false;   // keep finished points, resume interrupted ones
+  bool force = false;    // rerun every point
+  bool status = false;   // say what each point's files say, run nothing
+  bool collect = false;  // write summary.csv from the points that have finished, run nothing
 };
 
 // Folder of a sweep's files: the deck's output name without ".h5", plus "_sweep".
@@ -25,7 +27,11 @@ std::string sweep_folder(const Deck& deck);
 std::string point_file(const Deck& deck, int point);
 
 // Runs the sweep; returns the exit code (0 all points finished, 2 some failed, 130 interrupted).
-// Throws InputError before running anything when a point's deck is invalid.
+// Throws InputError before running anything when a point's deck is invalid. With
+// options.status or options.collect it runs nothing and reads the sweep's files instead (each
+// point finished, running, interrupted, failed or not run, from its file, checkpoint, lock
+// and log): --status lists them, --collect writes summary.csv from the finished ones; 0 when
+// every point has finished, else 2.
 int run_sweep(const Deck& deck, const SweepOptions& options);
 
 // In a point process started by a sweep: asks the kernel for SIGINT when the sweep dies (a

@@ -256,6 +256,36 @@ TEST_CASE("check refuses an output in a folder that does not exist, and notes an
   CHECK(log.find("nowhere/tiny.h5 exists: pdsim run needs --force") != std::string::npos);
 }
 
+// A sweep's files read without running anything: one point finished, one failed (its log's
+// error), one never started; --status says which, --collect tabulates the finished one.
+TEST_CASE("sweep --status and --collect say which points are finished, failed or missing") {
+  Sandbox box;
+  std::ofstream(box.dir / "masses.toml")
+      << "[structure]\nkind = \"sdof\"\nmass = 1.0\nstiffness = 10000.0\n"
+         "damping_ratio = 0.2\n[excitation]\nkind = \"stepped_sine\"\n"
+         "amplitude = 1.0\nfrequencies = [15.0]\n[output]\nfile = \"m.h5\"\n"
+         "[sweep]\n\"structure.mass\" = [0.5, 1.0, 2.0]\n";
+  fs::create_directories(box.dir / "m_sweep");
+  REQUIRE(box.pdsim("run masses.toml --point 1 -o m_sweep/p001.h5 --quiet") == 0);
+  std::ofstream(box.dir / "m_sweep" / "p002.log") << "error: the node was lost\n";
+  std::string log;
+  CHECK(box.pdsim("sweep masses.toml --status", &log) == 2);
+  CHECK(log.find("point 1/3 (structure.mass = 0.5): finished") != std::string::npos);
+  CHECK(log.find("point 2/3 (structure.mass = 1.0): failed: error: the node was lost") !=
+        std::string::npos);
+  CHECK(log.find("point 3/3 (structure.mass = 2.0): not run") != std::string::npos);
+  CHECK(log.find("1 of 3 points finished") != std::string::npos);
+  CHECK(!fs::exists(box.dir / "m_sweep" / "summary.csv"));  // --status writes nothing
+  CHECK(box.pdsim("sweep masses.toml --collect", &log) == 2);
+  CHECK(log.find("not finished: points 2, 3") != std::string::npos);
+  std::ifstream summary(box.dir / "m_sweep" / "summary.csv");
+  std::string line, rows;
+  while (std::getline(summary, line)) rows += line + "\n";
+  CHECK(rows.find("\n1,0.5,finished,p001.h5,") != std::string::npos);
+  CHECK(rows.find("\n2,1.0,failed,p002.h5\n") != std::string::npos);
+  CHECK(rows.find("\n3,2.0,not run,p003.h5\n") != std::string::npos);
+}
+
 TEST_CASE("a sweep runs every point side by side and tabulates the analytical SDOF response") {
   Sandbox box;
   // A bare SDOF driven at 15 Hz with 1 N: X = F / sqrt((K - M w^2)^2 + (c w)^2), c = 2 zeta

@@ -79,6 +79,9 @@ int main(int argc, char** argv) {
   sweep->add_flag("--force", sweep_options.force, "rerun every point, overwriting its file");
   sweep->add_flag("--status", sweep_options.status,
                   "run nothing: each point finished, running, interrupted, failed or not run");
+  sweep->add_flag("--ranks", sweep_options.ranks,
+                  "under mpirun -np N or srun -n N: this rank's points only; the last writes the "
+                  "summary");
   sweep->add_flag("--collect", sweep_options.collect,
                   "run nothing: summary.csv from the points that have finished, naming the rest");
 

@@ -242,6 +242,30 @@ int read_sweep(const Deck& deck, const SweepOptions& o, const std::string& folde
   return finished == count ? 0 : 2;
 }
 
+// This process's rank and the number of ranks, from the launcher's environment.
+std::pair<int, int> launcher_rank() {
+  const std::pair<const char*, const char*> names[] = {
+      {"OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE"},
+      {"PMI_RANK", "PMI_SIZE"},
+      {"SLURM_PROCID", "SLURM_NTASKS"}};
+  for (const auto& [rank_name, size_name] : names) {
+    const char* rank = std::getenv(rank_name);
+    const char* size = std::getenv(size_name);
+    if (!rank || !size) continue;
+    char* end = nullptr;
+    const long r = std::strtol(rank, &end, 10);
+    const bool rank_ok = *rank && !*end;
+    const long n = std::strtol(size, &end, 10);
+    if (!rank_ok || !*size || *end || n < 1 || r < 0 || r >= n)
+      throw InputError(std::string("--ranks: ") + rank_name + " = '" + rank + "' and " + size_name +
+                       " = '" + size + "' are not a rank below a size");
+    return {static_cast<int>(r), static_cast<int>(n)};
+  }
+  throw InputError(
+      "--ranks: no launcher rank in the environment (OMPI_COMM_WORLD_RANK/SIZE, PMI_RANK/SIZE "
+      "or SLURM_PROCID/NTASKS); start it with mpirun -np N or srun -n N");
+}
+
 }  // namespace
 
 std::string sweep_folder(const Deck& deck) {
@@ -304,6 +328,8 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
     throw InputError(deck.path + ": the deck has no [sweep] table; run it with `pdsim run`");
   const std::string folder = o.folder.empty() ? sweep_folder(deck) : o.folder;
   if (o.status || o.collect) return read_sweep(deck, o, folder);
+  const auto [rank, ranks] = o.ranks ? launcher_rank() : std::pair{0, 1};
+  auto mine = [rank = rank, ranks = ranks](int k) { return (k - 1) % ranks == rank; };
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const int jobs = std::min(count, o.jobs > 0 ? o.jobs : cores);
   const int threads = o.threads > 0 ? o.threads : std::max(1, cores / jobs);
@@ -317,6 +343,7 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
     p.deck = std::move(decks[static_cast<std::size_t>(k - 1)]);
     p.file = (fs::path(folder) / point_file(deck, k)).string();
     p.log = p.file.substr(0, p.file.size() - 3) + ".log";
+    if (!mine(k)) continue;  // another rank's
     if (fs::exists(p.file) && !o.force) {
       if (!o.resume)
         throw InputError(p.file +
@@ -345,6 +372,7 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
   for (;;) {
     while (!g_stop && running < jobs && next < points.size()) {
       Point& p = points[next++];
+      if (!mine(p.index)) continue;
       if (p.kept) {
         std::printf("point %d/%d (%s): finished earlier, kept\n", p.index, count,
                     deck.sweep.describe(p.index).c_str());
@@ -387,6 +415,35 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
   sigaction(SIGTERM, &previous_term, nullptr);
 
   const std::string summary = (fs::path(folder) / "summary.csv").string();
+  if (ranks > 1) {
+    // The other ranks' points as their files say; the rank that finds all finished (the last
+    // to finish) writes the summary, one rank at a time.
+    int own = 0, done = 0;
+    for (Point& p : points) {
+      if (mine(p.index)) {
+        own += 1, done += p.kept || p.code == 0;
+      } else {
+        read_state(p);
+      }
+    }
+    int finished = 0;
+    for (const Point& p : points) finished += p.kept || p.code == 0;
+    std::printf("rank %d of %d: %d of its %d points finished\n", rank, ranks, done, own);
+    if (finished == count) {
+      // Two ranks finishing together both write it, one after the other (10 s at most).
+      for (int attempt = 0;; ++attempt) try {
+          const OutputLock lock(summary);
+          write_summary(deck, points, summary);
+          break;
+        } catch (const std::runtime_error&) {
+          if (attempt == 200) throw;
+          std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        }
+      std::printf("%d of %d points finished; summary in %s\n", finished, count, summary.c_str());
+    }
+    if (g_stop) return 130;
+    return done < own ? 2 : 0;
+  }
   write_summary(deck, points, summary);
   int finished = 0;
   for (const Point& p : points) finished += p.kept || p.code == 0;

@@ -19,6 +19,7 @@ struct SweepOptions {
   bool force = false;    // rerun every point
   bool status = false;   // say what each point's files say, run nothing
   bool collect = false;  // write summary.csv from the points that have finished, run nothing
+  bool ranks = false;    // run only this launcher rank's points (mpirun / srun), see run_sweep
 };
 
 // Folder of a sweep's files: the deck's output name without ".h5", plus "_sweep".
@@ -31,7 +32,10 @@ std::string point_file(const Deck& deck, int point);
 // options.status or options.collect it runs nothing and reads the sweep's files instead (each
 // point finished, running, interrupted, failed or not run, from its file, checkpoint, lock
 // and log): --status lists them, --collect writes summary.csv from the finished ones; 0 when
-// every point has finished, else 2.
+// every point has finished, else 2. With options.ranks a process started by a launcher
+// (mpirun, srun: its rank and size from OMPI_COMM_WORLD_RANK/SIZE, PMI_RANK/SIZE or
+// SLURM_PROCID/NTASKS; no MPI library) runs the points K with (K - 1) mod size = rank, and
+// whichever rank finds every point finished writes summary.csv; 0 when its own points finished.
 int run_sweep(const Deck& deck, const SweepOptions& options);
 
 // In a point process started by a sweep: asks the kernel for SIGINT when the sweep dies (a

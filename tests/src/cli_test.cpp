@@ -286,6 +286,41 @@ TEST_CASE("sweep --status and --collect say which points are finished, failed or
   CHECK(rows.find("\n3,2.0,not run,p003.h5\n") != std::string::npos);
 }
 
+// Ranks of a launcher (here its environment alone, as mpirun or srun sets it) share the points:
+// each runs its own, the files are those of a local sweep, and the last rank writes the summary.
+TEST_CASE("sweep --ranks: two ranks run the points of one local sweep, bitwise") {
+  Sandbox box;
+  std::ofstream(box.dir / "masses.toml")
+      << "[structure]\nkind = \"sdof\"\nmass = 1.0\nstiffness = 10000.0\n"
+         "damping_ratio = 0.2\n[excitation]\nkind = \"stepped_sine\"\n"
+         "amplitude = 1.0\nfrequencies = [15.0, 16.0]\n[output]\nfile = \"m.h5\"\n"
+         "[sweep]\n\"structure.mass\" = [0.5, 1.0, 2.0]\n";
+  REQUIRE(box.pdsim("sweep masses.toml -o local --jobs 1") == 0);
+  const std::string bin = "'" + std::string(PDSIM_BINARY) + "'";
+  std::string log;
+  REQUIRE(box.shell("for r in 0 1; do OMPI_COMM_WORLD_RANK=$r OMPI_COMM_WORLD_SIZE=2 " + bin +
+                        " sweep masses.toml -o ranked --ranks --jobs 1 > rank$r.txt 2>&1 & "
+                        "done; wait; cat rank0.txt rank1.txt",
+                    &log) == 0);
+  CHECK(log.find("rank 0 of 2: 2 of its 2 points finished") != std::string::npos);
+  CHECK(log.find("rank 1 of 2: 1 of its 1 points finished") != std::string::npos);
+  for (const char* file : {"p001.h5", "p002.h5", "p003.h5"}) {
+    CAPTURE(file);
+    const pdsim::Results a = pdsim::read_results((box.dir / "local" / file).string());
+    const pdsim::Results b = pdsim::read_results((box.dir / "ranked" / file).string());
+    CHECK(a.frf.amplitude == b.frf.amplitude);
+    CHECK(a.frf.phase == b.frf.phase);
+    CHECK(a.timeseries.displacement == b.timeseries.displacement);
+  }
+  std::ifstream summary(box.dir / "ranked" / "summary.csv");
+  std::string line;
+  int finished = 0;
+  while (std::getline(summary, line)) finished += line.find(",finished,") != std::string::npos;
+  CHECK(finished == 3);
+  CHECK(box.pdsim("sweep masses.toml --ranks", &log) == 1);  // no launcher: refused by name
+  CHECK(log.find("no launcher rank in the environment") != std::string::npos);
+}
+
 TEST_CASE("a sweep runs every point side by side and tabulates the analytical SDOF response") {
   Sandbox box;
   // A bare SDOF driven at 15 Hz with 1 N: X = F / sqrt((K - M w^2)^2 + (c w)^2), c = 2 zeta

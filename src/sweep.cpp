@@ -179,6 +179,16 @@ void write_summary(const Deck& deck, const std::vector<Point>& points, const std
   fs::rename(path + ".partial", path);
 }
 
+// Point k of the sweep in `folder`: its deck, file and log.
+Point sweep_point_at(const Deck& deck, const std::string& folder, int k, Deck point_deck) {
+  Point p;
+  p.index = k;
+  p.deck = std::move(point_deck);
+  p.file = (fs::path(folder) / point_file(deck, k)).string();
+  p.log = p.file.substr(0, p.file.size() - 3) + ".log";
+  return p;
+}
+
 // What a point's files say of it: finished (its file, of this point's deck), running (its
 // output's lock held), interrupted (a checkpoint, or a log without an error), failed (an error
 // in its log), or not run (nothing).
@@ -212,10 +222,7 @@ int read_sweep(const Deck& deck, const SweepOptions& o, const std::string& folde
   std::string missing;
   for (int k = 1; k <= count; ++k) {
     Point& p = points[static_cast<std::size_t>(k - 1)];
-    p.index = k;
-    p.deck = sweep_point(deck, k);
-    p.file = (fs::path(folder) / point_file(deck, k)).string();
-    p.log = p.file.substr(0, p.file.size() - 3) + ".log";
+    p = sweep_point_at(deck, folder, k, sweep_point(deck, k));
     read_state(p);
     finished += p.kept;
     const std::string state = p.kept               ? "finished"
@@ -339,10 +346,7 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
   std::vector<Point> points(static_cast<std::size_t>(count));
   for (int k = 1; k <= count; ++k) {
     Point& p = points[static_cast<std::size_t>(k - 1)];
-    p.index = k;
-    p.deck = std::move(decks[static_cast<std::size_t>(k - 1)]);
-    p.file = (fs::path(folder) / point_file(deck, k)).string();
-    p.log = p.file.substr(0, p.file.size() - 3) + ".log";
+    p = sweep_point_at(deck, folder, k, std::move(decks[static_cast<std::size_t>(k - 1)]));
     if (!mine(k)) continue;  // another rank's
     if (fs::exists(p.file) && !o.force) {
       if (!o.resume)

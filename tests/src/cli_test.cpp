@@ -63,6 +63,14 @@ struct Sandbox {
   }
 };
 
+// A bare SDOF at 15 Hz under 1 N, its mass swept over three values (the sweep tests' deck).
+const char* kMassSweep =
+    "[structure]\nkind = \"sdof\"\nmass = 1.0\nstiffness = 10000.0\n"
+    "damping_ratio = 0.2\n[excitation]\nkind = \"stepped_sine\"\n"
+    "amplitude = 1.0\nfrequencies = [15.0]\n"
+    "settle = { min_periods = 10, max_periods = 400, tolerance = 1e-5 }\n"
+    "[output]\nfile = \"m.h5\"\n[sweep]\n\"structure.mass\" = [0.5, 1.0, 2.0]\n";
+
 std::string deck(const std::string& name) {
   return std::string(PDSIM_TEST_DIR) + "/decks/" + name;
 }
@@ -260,11 +268,7 @@ TEST_CASE("check refuses an output in a folder that does not exist, and notes an
 // error), one never started; --status says which, --collect tabulates the finished one.
 TEST_CASE("sweep --status and --collect say which points are finished, failed or missing") {
   Sandbox box;
-  std::ofstream(box.dir / "masses.toml")
-      << "[structure]\nkind = \"sdof\"\nmass = 1.0\nstiffness = 10000.0\n"
-         "damping_ratio = 0.2\n[excitation]\nkind = \"stepped_sine\"\n"
-         "amplitude = 1.0\nfrequencies = [15.0]\n[output]\nfile = \"m.h5\"\n"
-         "[sweep]\n\"structure.mass\" = [0.5, 1.0, 2.0]\n";
+  std::ofstream(box.dir / "masses.toml") << kMassSweep;
   fs::create_directories(box.dir / "m_sweep");
   REQUIRE(box.pdsim("run masses.toml --point 1 -o m_sweep/p001.h5 --quiet") == 0);
   std::ofstream(box.dir / "m_sweep" / "p002.log") << "error: the node was lost\n";
@@ -288,13 +292,9 @@ TEST_CASE("sweep --status and --collect say which points are finished, failed or
 
 // Ranks of a launcher (here its environment alone, as mpirun or srun sets it) share the points:
 // each runs its own, the files are those of a local sweep, and the last rank writes the summary.
-TEST_CASE("sweep --ranks: two ranks run the points of one local sweep, bitwise") {
+TEST_CASE("sweep --ranks: two ranks give the points of one local sweep") {
   Sandbox box;
-  std::ofstream(box.dir / "masses.toml")
-      << "[structure]\nkind = \"sdof\"\nmass = 1.0\nstiffness = 10000.0\n"
-         "damping_ratio = 0.2\n[excitation]\nkind = \"stepped_sine\"\n"
-         "amplitude = 1.0\nfrequencies = [15.0, 16.0]\n[output]\nfile = \"m.h5\"\n"
-         "[sweep]\n\"structure.mass\" = [0.5, 1.0, 2.0]\n";
+  std::ofstream(box.dir / "masses.toml") << kMassSweep;
   REQUIRE(box.pdsim("sweep masses.toml -o local --jobs 1") == 0);
   const std::string bin = "'" + std::string(PDSIM_BINARY) + "'";
   std::string log;
@@ -325,13 +325,7 @@ TEST_CASE("a sweep runs every point side by side and tabulates the analytical SD
   Sandbox box;
   // A bare SDOF driven at 15 Hz with 1 N: X = F / sqrt((K - M w^2)^2 + (c w)^2), c = 2 zeta
   // sqrt(K M), for each swept mass.
-  const fs::path path = box.dir / "masses.toml";
-  std::ofstream(path)
-      << "[structure]\nkind = \"sdof\"\nmass = 1.0\nstiffness = 10000.0\n"
-         "damping_ratio = 0.2\n[excitation]\nkind = \"stepped_sine\"\n"
-         "amplitude = 1.0\nfrequencies = [15.0]\n"
-         "settle = { min_periods = 10, max_periods = 400, tolerance = 1e-5 }\n"
-         "[output]\nfile = \"m.h5\"\n[sweep]\n\"structure.mass\" = [0.5, 1.0, 2.0]\n";
+  std::ofstream(box.dir / "masses.toml") << kMassSweep;
   std::string log;
   REQUIRE(box.pdsim("sweep --jobs 2 masses.toml", &log) == 0);
   CHECK(log.find("3 of 3 points finished") != std::string::npos);

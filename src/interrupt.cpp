@@ -13,9 +13,12 @@ extern "C" void on_interrupt(int) {
 }
 }  // namespace
 
-InterruptScope::InterruptScope() : previous(std::signal(SIGINT, on_interrupt)) {}
+InterruptScope::InterruptScope()
+    : previous_int(std::signal(SIGINT, on_interrupt)),
+      previous_term(std::signal(SIGTERM, on_interrupt)) {}
 InterruptScope::~InterruptScope() {
-  std::signal(SIGINT, previous);
+  std::signal(SIGINT, previous_int);
+  std::signal(SIGTERM, previous_term);
 }
 
 }  // namespace pdsim

@@ -5,6 +5,7 @@
 
 #include "src/format.hpp"
 #include "src/frequency_run.hpp"
+#include "src/run.hpp"
 
 namespace pdsim {
 
@@ -85,6 +86,12 @@ std::string check_report(const Deck& deck, const Scene& scene) {
       << number(particle_steps / 1e7, 2) << " s at 1e7 particle-steps/s)";
   }
   s << "\n";
+  if (!scene.dampers.empty()) {
+    const int side_by_side = runs_side_by_side(deck, scene.threads, 0);
+    s << "memory: at most about " << number(memory_estimate_mib(deck, scene, scene.threads), 3)
+      << " MiB (" << side_by_side << " run" << (side_by_side > 1 ? "s" : "")
+      << " side by side, a core each; `pdsim run --threads N` sets how many)\n";
+  }
   return s.str();
 }
 

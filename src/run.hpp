@@ -35,6 +35,12 @@ void check_output_path(const std::string& path);
 // A file beside the deck's output named for it: "OUT.h5" -> "OUT<suffix>" ("_map.h5").
 std::string output_beside(const Deck& deck, const std::string& suffix);
 
+// How many runs of the deck (fills, or independent frequencies) go side by side on `threads`
+// threads (0: solver.threads, else every core), `jobs` at most (0: one per thread).
+int runs_side_by_side(const Deck& deck, int threads, int jobs);
+// Memory a run of the deck needs on `threads` threads, MiB (generous: for a scheduler's request).
+double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads);
+
 // Runs the deck to completion and writes its results. Throws InputError for user errors
 // (existing output without --force, resume mismatch) and SimulationError for blow-ups.
 RunReport run_deck(const Deck& deck, const RunOptions& options);

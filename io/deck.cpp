@@ -2,6 +2,8 @@
 // error names the exact key, its position in the file and what was expected.
 #include "io/deck.hpp"
 
+#include <wordexp.h>
+
 #include <toml++/toml.h>
 
 #include <algorithm>
@@ -776,6 +778,18 @@ MapSpec read_map(const Table& t) {
   return m;
 }
 
+ClusterSpec read_cluster(const Table& t) {
+  ClusterSpec c;
+  t.allow_only({"sbatch"});
+  const std::string text = t.text("sbatch").value_or("");
+  try {
+    c.sbatch = sbatch_options(text, "");
+  } catch (const InputError& e) {
+    t.fail("sbatch", e.what());
+  }
+  return c;
+}
+
 OutputSpec read_output(const Table& t) {
   OutputSpec o;
   t.allow_only({"file", "every", "energy", "particles"});
@@ -1040,7 +1054,7 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
 
   const Table top(root, "", SourcePos{path, 0, 0});
   top.allow_only({"title", "structure", "damper", "contact", "gravity", "excitation", "bed",
-                  "coupling", "solver", "output", "sweep", "map"});
+                  "coupling", "solver", "output", "sweep", "map", "cluster"});
   deck.title = top.text("title").value_or("");
   const std::string table = "a table";
 
@@ -1089,6 +1103,7 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
   if (const auto solver = top.sub("solver", table)) deck.solver = read_solver(*solver);
   if (const auto output = top.sub("output", table)) deck.output = read_output(*output);
   if (const auto map = top.sub("map", table)) deck.map = read_map(*map);
+  if (const auto cluster = top.sub("cluster", table)) deck.cluster = read_cluster(*cluster);
   settle_realisations(deck);
   if (const toml::node* sweep = root.get("sweep")) {
     if (!sweep->as_table()) top.wrong(*sweep, "sweep", table);
@@ -1103,6 +1118,37 @@ Deck read_deck(const toml::table& root, const std::string& text, const std::stri
 
 Deck parse_deck(const std::string& text, const std::string& path) {
   return read_deck(parse_root(text, path), text, path);
+}
+
+std::vector<std::string> sbatch_options(const std::string& text, const std::string& what) {
+  const std::string named = what.empty() ? "" : what + ": ";
+  wordexp_t words;
+  const int rc = wordexp(text.c_str(), &words, WRDE_NOCMD | WRDE_UNDEF);
+  if (rc != 0) {
+    if (rc == WRDE_NOSPACE) wordfree(&words);
+    throw InputError(named + "expected sbatch options as a shell would split them, got '" + text +
+                     "' (" +
+                     (rc == WRDE_BADCHAR  ? "a | & ; < > ( ) { } or newline outside quotes"
+                      : rc == WRDE_CMDSUB ? "a command substitution"
+                      : rc == WRDE_BADVAL ? "an undefined variable"
+                      : rc == WRDE_SYNTAX ? "unbalanced quotes"
+                                          : "cannot be split") +
+                     ")");
+  }
+  std::vector<std::string> options(words.we_wordv, words.we_wordv + words.we_wordc);
+  wordfree(&words);
+  for (const std::string& o : options) {
+    for (const char* own : {"--array", "-a", "--wrap", "--parsable", "--dependency", "-d"}) {
+      const std::string name = own;
+      if (o == name || o.rfind(name + "=", 0) == 0 || (name.size() == 2 && o.rfind(name, 0) == 0))
+        throw InputError(named + o +
+                         " is set by pdsim sweep --slurm itself (the array of points, the "
+                         "collect job after it); leave it out");
+    }
+    if (o.empty() || o[0] != '-')
+      throw InputError(named + "expected options starting with -, got '" + o + "'");
+  }
+  return options;
 }
 
 Deck sweep_point(const Deck& deck, int point) {

@@ -41,6 +41,7 @@ struct Deck {
   OutputSpec output;
   SweepSpec sweep;
   MapSpec map;
+  ClusterSpec cluster;
   int point = 0;  // the sweep point this deck is (1-based), 0 for the deck itself
   // Where each key given in the deck stands, by dotted name ("damper[0].particles.count").
   std::map<std::string, SourcePos> positions;
@@ -58,6 +59,12 @@ Deck parse_deck(const std::string& text, const std::string& path);
 // settle.realisations defaults to 1 (and an explicit > 1 or start = "independent" is refused). The
 // switch joins the deck's text, its provenance.
 Deck with_snapshots(Deck deck, double every);
+
+// sbatch options written as a shell would split them ("--partition=short --time='1:00:00'"),
+// variables expanded, no commands run. Throws InputError saying what is wrong, after "what: "
+// unless `what` is empty; options that `pdsim sweep --slurm` sets itself (--array, --wrap,
+// --parsable, --dependency) are refused.
+std::vector<std::string> sbatch_options(const std::string& text, const std::string& what);
 
 // Sweep point `point` (1 to deck.sweep.points()) of a deck: the deck with that point's values,
 // validated. An error names the [sweep] entry that set the value, and the point.

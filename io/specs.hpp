@@ -120,6 +120,11 @@ struct OutputSpec {
   double particles_every = 0;  // s between particle snapshots (/particles and OUT.xdmf); 0 = none
 };
 
+// Where the points of a sweep run on a Slurm cluster (`pdsim sweep --slurm`), the [cluster] table.
+struct ClusterSpec {
+  std::vector<std::string> sbatch;  // sbatch options (partition, account, time limit, ...)
+};
+
 // A damper map, the [map] table (`pdsim map`): the deck's dampers under prescribed sinusoidal
 // motion along the structure's direction over a grid of motion amplitudes (or peak
 // accelerations) and frequencies.

@@ -82,6 +82,12 @@ int main(int argc, char** argv) {
   sweep->add_flag("--ranks", sweep_options.ranks,
                   "under mpirun -np N or srun -n N: this rank's points only; the last writes the "
                   "summary");
+  sweep->add_flag("--slurm", sweep_options.slurm,
+                  "submit the points as a Slurm job array, and a job after it that writes the "
+                  "summary; --jobs caps how many run at once");
+  sweep->add_option("--sbatch", sweep_options.sbatch,
+                    "with --slurm: more sbatch options, quoted as one (\"--partition=short "
+                    "--time=2:00:00\"), after the deck's [cluster] sbatch");
   sweep->add_flag("--collect", sweep_options.collect,
                   "run nothing: summary.csv from the points that have finished, naming the rest");
 

@@ -291,12 +291,16 @@ std::string point_file(const Deck& deck, int point) {
 namespace {
 
 // The deck of every point, each checked as `pdsim run` would check it; an error names its point.
-std::vector<Deck> checked_points(const Deck& deck, int threads, std::optional<Backend> backend) {
+// `memory_mib`, if given, gets the most memory a point needs on `threads` threads.
+std::vector<Deck> checked_points(const Deck& deck, int threads, std::optional<Backend> backend,
+                                 double* memory_mib = nullptr) {
   std::vector<Deck> points;
   for (int k = 1; k <= deck.sweep.points(); ++k) {
     points.push_back(sweep_point(deck, k));
     try {
-      build_scene(points.back(), threads, backend);
+      const Scene scene = build_scene(points.back(), threads, backend);
+      if (memory_mib)
+        *memory_mib = std::max(*memory_mib, memory_estimate_mib(points.back(), scene, threads));
     } catch (const InputError& e) {
       throw InputError(std::string(e.what()) + " (sweep point " + std::to_string(k) + ": " +
                        deck.sweep.describe(k) + ")");
@@ -305,14 +309,201 @@ std::vector<Deck> checked_points(const Deck& deck, int threads, std::optional<Ba
   return points;
 }
 
+// A word for a bash script: single-quoted, each ' written as '\''.
+std::string quoted(const std::string& word) {
+  std::string q = "'";
+  for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// Runs a program found on PATH; returns its exit code (-1: it could not start) and what it
+// printed, standard output and error together.
+std::pair<int, std::string> run_program(const std::vector<std::string>& args) {
+  int fd[2];
+  if (pipe(fd) != 0) throw SimulationError(std::string("pipe: ") + std::strerror(errno));
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, fd[1], 1);
+  posix_spawn_file_actions_adddup2(&actions, fd[1], 2);
+  posix_spawn_file_actions_addclose(&actions, fd[0]);
+  posix_spawn_file_actions_addclose(&actions, fd[1]);
+  std::vector<std::string> words = args;
+  std::vector<char*> argv;
+  for (auto& a : words) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  close(fd[1]);
+  std::string out;
+  if (rc == 0) {
+    char buffer[4096];
+    for (ssize_t n; (n = read(fd[0], buffer, sizeof buffer)) != 0;)
+      if (n > 0)
+        out.append(buffer, static_cast<std::size_t>(n));
+      else if (errno != EINTR)
+        break;
+  }
+  close(fd[0]);
+  if (rc != 0) return {-1, std::strerror(rc)};
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
+}
+
+// sbatch with `options`; returns the job id it printed (--parsable: "ID" or "ID;CLUSTER").
+std::string sbatch(const std::vector<std::string>& options) {
+  std::vector<std::string> args = {"sbatch", "--parsable"};
+  args.insert(args.end(), options.begin(), options.end());
+  const auto [code, out] = run_program(args);
+  std::string id = out.substr(0, out.find_first_of(";\n"));
+  const bool numeric = !id.empty() && id.find_first_not_of("0123456789") == std::string::npos;
+  if (code == -1)
+    throw InputError("--slurm: cannot start sbatch (" + out +
+                     "); is this a Slurm login node with sbatch on PATH?");
+  if (code != 0 || !numeric)
+    throw std::runtime_error("--slurm: sbatch failed (exit code " + std::to_string(code) +
+                             "): " + out.substr(0, 1000));
+  return id;
+}
+
+// "1-3,5,7-9" for the points 1, 2, 3, 5, 7, 8, 9 (a job array's indices).
+std::string index_ranges(const std::vector<int>& points) {
+  std::string ranges;
+  for (std::size_t i = 0; i < points.size();) {
+    std::size_t j = i;
+    while (j + 1 < points.size() && points[j + 1] == points[j] + 1) ++j;
+    ranges += (ranges.empty() ? "" : ",") + std::to_string(points[i]) +
+              (j > i ? "-" + std::to_string(points[j]) : "");
+    i = j + 1;
+  }
+  return ranges;
+}
+
+// --slurm: the points not finished, as one job array, and a collect job after it (run_sweep).
+int submit_slurm(const Deck& deck, const SweepOptions& o, const std::string& folder,
+                 const std::vector<Point>& points, int threads, double memory_mib) {
+  std::vector<int> submit;
+  std::string running;
+  for (const Point& p : points) {
+    if (p.kept) continue;
+    if (output_locked(p.file)) {
+      if (!o.resume)
+        throw InputError(p.file +
+                         ": is being run (its lock is held); wait for it, or cancel it "
+                         "and use --resume");
+      running += (running.empty() ? "" : ", ") + std::to_string(p.index);
+      continue;
+    }
+    std::error_code ignored;
+    if (o.force) {
+      fs::remove(p.file, ignored);
+      fs::remove(p.file + ".partial", ignored);
+    } else if (!o.resume && fs::exists(p.file + ".partial", ignored)) {
+      throw InputError(p.file +
+                       ".partial: the checkpoint of an interrupted point; use --resume "
+                       "to continue it or --force to start it anew");
+    }
+    submit.push_back(p.index);
+  }
+  const int count = static_cast<int>(points.size());
+  if (submit.empty()) {
+    const auto finished =
+        std::count_if(points.begin(), points.end(), [](const Point& p) { return p.kept; });
+    std::printf(
+        "nothing to submit: %d of %d points finished%s; `pdsim sweep %s --collect` "
+        "writes the summary\n",
+        static_cast<int>(finished), count,
+        running.empty() ? "" : (", points " + running + " running").c_str(), deck.path.c_str());
+    return 0;
+  }
+
+  const fs::path here = fs::current_path();
+  const std::string exe = fs::read_symlink("/proc/self/exe").string();
+  const std::string files = fs::path(points.front().file).parent_path().string();
+  const std::string digits = std::to_string(point_file(deck, 1).size() - 4);  // "p001.h5"
+  const std::string name = "pdsim-" + fs::path(folder).filename().string();
+  std::vector<std::string> extra = deck.cluster.sbatch;
+  for (const auto& option : sbatch_options(o.sbatch, "--sbatch")) extra.push_back(option);
+  std::vector<std::string> array = {
+      "--job-name=" + name,
+      "--chdir=" + here.string(),
+      "--array=" + index_ranges(submit) + (o.jobs > 0 ? "%" + std::to_string(o.jobs) : ""),
+      "--cpus-per-task=" + std::to_string(threads),
+      "--mem=" + std::to_string(static_cast<long>(std::ceil(memory_mib))) + "M",
+      "--requeue",
+      "--output=" + (here / files / ("p%" + digits + "a.log")).string()};
+  array.insert(array.end(), extra.begin(), extra.end());  // the user's options win
+  const std::string script = (fs::path(folder) / "slurm_array.sh").string();
+  {
+    std::string command = "sbatch";
+    for (const auto& a : array) command += " " + quoted(a);
+    std::ofstream out(script + ".partial");
+    out << "#!/bin/bash\n"
+        << "# pdsim sweep " << deck.path
+        << " --slurm: task K of the job array runs sweep point K,\n"
+        << "# from its checkpoint when it has one (requeued, resubmitted), not at all when its\n"
+        << "# file is there. Submitted as\n# " << command << " " << script << "\n"
+        << "set -eu\n"
+        << "point=$SLURM_ARRAY_TASK_ID\n"
+        << "file=$(printf '%s/p%0" << digits << "d.h5' " << quoted(files) << " \"$point\")\n"
+        << "if [ -e \"$file\" ]; then echo \"$file: finished earlier, kept\"; exit 0; fi\n"
+        << "resume=\n"
+        << "if [ -e \"$file.partial\" ]; then\n"
+        << "  resume=--resume\n"
+        << "  echo \"point $point: continuing from $file.partial\"\n"
+        << "fi\n"
+        << "exec " << quoted(exe) << " run " << quoted(deck.path)
+        << " --point \"$point\" --output \"$file\" --threads " << threads << " --quiet"
+        << (o.backend ? std::string(" --backend ") + backend_name(*o.backend) : std::string())
+        << " $resume\n";
+    out.close();
+    if (!out) throw SimulationError(script + ": could not be written");
+    fs::rename(script + ".partial", script);
+  }
+  array.push_back(script);
+  const std::string array_id = sbatch(array);
+  std::vector<std::string> collect = {"--job-name=" + name + "-collect", "--chdir=" + here.string(),
+                                      "--dependency=afterany:" + array_id, "--cpus-per-task=1",
+                                      "--output=" + (here / folder / "collect.log").string()};
+  collect.insert(collect.end(), extra.begin(), extra.end());
+  collect.push_back("--wrap=" + quoted(exe) + " sweep " + quoted(deck.path) + " --output " +
+                    quoted(folder) + " --collect");
+  const std::string collect_id = sbatch(collect);
+  std::printf(
+      "sweep: %zu of %d points submitted to Slurm as job array %s (%d thread%s, %.0f MiB "
+      "each%s), files in %s/\n",
+      submit.size(), count, array_id.c_str(), threads, threads > 1 ? "s" : "",
+      std::ceil(memory_mib),
+      o.jobs > 0 ? (", " + std::to_string(o.jobs) + " at a time").c_str() : "", folder.c_str());
+  if (!running.empty())
+    std::printf("points %s are running and were not submitted\n", running.c_str());
+  std::printf("job %s writes %s/summary.csv once the array has ended\n", collect_id.c_str(),
+              folder.c_str());
+  std::printf("watch: squeue -j %s,%s; pdsim sweep %s --status\n", array_id.c_str(),
+              collect_id.c_str(), deck.path.c_str());
+  std::printf("continue after a cancel or time limit: pdsim sweep %s --slurm --resume\n",
+              deck.path.c_str());
+  return 0;
+}
+
 }  // namespace
 
 std::string check_sweep(const Deck& deck, int threads, std::optional<Backend> backend) {
   std::ostringstream s;
   s << "sweep: " << deck.sweep.points() << " points, files in " << sweep_folder(deck) << "/\n";
-  checked_points(deck, threads, backend);
+  // What `pdsim sweep --slurm` would ask for each task: `threads` (--threads), else the deck's
+  // solver.threads, else one.
+  const int task_threads = threads > 0 ? threads : std::max(1, deck.solver.threads);
+  double memory_mib = 0;
+  checked_points(deck, task_threads, backend, &memory_mib);
   for (int k = 1; k <= deck.sweep.points(); ++k)
     s << "  point " << k << ": " << deck.sweep.describe(k) << "\n";
+  s << "slurm (sweep --slurm): a task per point, " << task_threads << " thread"
+    << (task_threads > 1 ? "s" : "") << " and " << std::ceil(memory_mib) << " MiB each";
+  for (const std::string& option : deck.cluster.sbatch) s << " " << option;
+  s << "\n";
   return s.str();
 }
 
@@ -335,14 +526,23 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
     throw InputError(deck.path + ": the deck has no [sweep] table; run it with `pdsim run`");
   const std::string folder = o.folder.empty() ? sweep_folder(deck) : o.folder;
   if (o.status || o.collect) return read_sweep(deck, o, folder);
+  if (o.slurm && o.ranks)
+    throw InputError("--slurm and --ranks: choose one (--slurm submits a job array itself)");
+  if (!o.slurm && !o.sbatch.empty()) throw InputError("--sbatch: only with --slurm");
+  sbatch_options(o.sbatch, "--sbatch");  // refused before anything is checked or written
   const auto [rank, ranks] = o.ranks ? launcher_rank() : std::pair{0, 1};
   auto mine = [rank = rank, ranks = ranks](int k) { return (k - 1) % ranks == rank; };
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const int jobs = std::min(count, o.jobs > 0 ? o.jobs : cores);
-  const int threads = o.threads > 0 ? o.threads : std::max(1, cores / jobs);
+  // A Slurm task is given the cores it asks for: one, unless the deck or --threads says more.
+  const int threads = o.threads > 0             ? o.threads
+                      : !o.slurm                ? std::max(1, cores / jobs)
+                      : deck.solver.threads > 0 ? deck.solver.threads
+                                                : 1;
 
   // Every point is checked before any runs, so that a bad value stops the sweep at once.
-  std::vector<Deck> decks = checked_points(deck, threads, o.backend);
+  double memory_mib = 0;
+  std::vector<Deck> decks = checked_points(deck, threads, o.backend, &memory_mib);
   std::vector<Point> points(static_cast<std::size_t>(count));
   for (int k = 1; k <= count; ++k) {
     Point& p = points[static_cast<std::size_t>(k - 1)];
@@ -359,6 +559,7 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
     p.resume = o.resume && !p.kept && fs::exists(p.file + ".partial");
   }
   fs::create_directories(folder);
+  if (o.slurm) return submit_slurm(deck, o, folder, points, threads, memory_mib);
   std::printf("sweep: %d points, %d at a time, %d thread%s each, files in %s/\n", count, jobs,
               threads, threads > 1 ? "s" : "", folder.c_str());
   std::fflush(stdout);

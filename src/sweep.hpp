@@ -20,6 +20,8 @@ struct SweepOptions {
   bool status = false;   // say what each point's files say, run nothing
   bool collect = false;  // write summary.csv from the points that have finished, run nothing
   bool ranks = false;    // run only this launcher rank's points (mpirun / srun), see run_sweep
+  bool slurm = false;    // submit the points as a Slurm job array instead, see run_sweep
+  std::string sbatch;    // more sbatch options for --slurm, after the deck's [cluster] sbatch
 };
 
 // Folder of a sweep's files: the deck's output name without ".h5", plus "_sweep".
@@ -36,6 +38,13 @@ std::string point_file(const Deck& deck, int point);
 // (mpirun, srun: its rank and size from OMPI_COMM_WORLD_RANK/SIZE, PMI_RANK/SIZE or
 // SLURM_PROCID/NTASKS; no MPI library) runs the points K with (K - 1) mod size = rank, and
 // whichever rank finds every point finished writes summary.csv; 0 when its own points finished.
+// With options.slurm it runs nothing here: it writes FOLDER/slurm_array.sh, submits it with
+// sbatch as one job array (task K runs point K, resuming its checkpoint when one is there;
+// `--jobs` at a time; the threads and memory a point needs; requeued if preempted), then a
+// collect job after it (afterany) that writes summary.csv, and prints both job ids. The deck's
+// [cluster] sbatch options and options.sbatch go to both jobs. With --resume only the points
+// neither finished nor running are submitted; with --force every point's files are removed
+// first.
 int run_sweep(const Deck& deck, const SweepOptions& options);
 
 // In a point process started by a sweep: asks the kernel for SIGINT when the sweep dies (a

@@ -600,6 +600,52 @@ TEST_CASE("SIGKILL at random moments never loses a finished frequency") {
   CHECK(caught >= 3);
 }
 
+// SIGTERM is what Slurm sends at a time limit, preemption or scancel (then SIGKILL KillWait s
+// later): a run takes it as an interrupt, exit 130 with its finished frequencies kept.
+TEST_CASE("SIGTERM, as a scheduler sends it, keeps the finished frequencies for --resume") {
+  Sandbox box;
+  const std::string slow = slow_deck(box, "slow.toml");
+  REQUIRE(box.pdsim("run --quiet --threads 1 -o whole.h5 " + slow) == 0);
+  std::string log;
+  const int code =
+      box.shell("'" + std::string(PDSIM_BINARY) + "' run --quiet --threads 1 -o t.h5 " + slow +
+                    " & for i in $(seq 400); do [ -e t.h5.partial ] && break; sleep 0.05; done; "
+                    "kill -TERM $!; wait $!",
+                &log);
+  REQUIRE_FALSE(fs::exists(box.dir / "t.h5"));  // stopped before its last frequency
+  CHECK(code == 130);
+  CHECK(log.find("interrupted; finished frequencies are in t.h5.partial") != std::string::npos);
+  REQUIRE(box.pdsim("run --quiet --threads 1 -o t.h5 --resume " + slow) == 0);
+  const pdsim::Results whole = pdsim::read_results((box.dir / "whole.h5").string());
+  const pdsim::Results resumed = pdsim::read_results((box.dir / "t.h5").string());
+  CHECK(resumed.frf.amplitude == whole.frf.amplitude);
+  CHECK(resumed.timeseries.displacement == whole.timeseries.displacement);
+}
+
+// What a queued sweep would trip over is refused before anything is submitted or written.
+TEST_CASE("sweep --slurm refuses bad sbatch options and a missing sbatch, naming them") {
+  Sandbox box;
+  std::ofstream(box.dir / "masses.toml")
+      << kMassSweep << "[cluster]\nsbatch = \"--partition=short --array=1-3\"\n";
+  std::string log;
+  CHECK(box.pdsim("check masses.toml", &log) == 1);
+  CHECK(log.find("masses.toml:16:10: 'cluster.sbatch': --array=1-3 is set") != std::string::npos);
+  CHECK(log.find("--array=1-3 is set by pdsim sweep --slurm itself") != std::string::npos);
+  std::ofstream(box.dir / "masses.toml") << kMassSweep;
+  CHECK(box.pdsim("sweep masses.toml --slurm --sbatch \"--time='1:00\"", &log) == 1);
+  CHECK(log.find("--sbatch: expected sbatch options as a shell would split them") !=
+        std::string::npos);
+  CHECK(log.find("unbalanced quotes") != std::string::npos);
+  CHECK(box.pdsim("sweep masses.toml --sbatch --time=1:00", &log) == 1);
+  CHECK(log.find("--sbatch: only with --slurm") != std::string::npos);
+  CHECK(box.pdsim("sweep masses.toml --slurm --ranks", &log) == 1);
+  CHECK(log.find("choose one") != std::string::npos);
+  CHECK(box.shell("PATH=/nonexistent '" + std::string(PDSIM_BINARY) + "' sweep masses.toml --slurm",
+                  &log) == 1);
+  CHECK(log.find("cannot start sbatch") != std::string::npos);
+  CHECK_FALSE(fs::exists(box.dir / "m_sweep" / "p001.h5"));
+}
+
 TEST_CASE("a SIGKILLed sweep leaves no point process behind, each keeping its checkpoint") {
   Sandbox box;
   const std::string name = "sweep_" + std::to_string(getpid()) + ".toml";

@@ -5,12 +5,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 #include "io/excitation.hpp"
 #include "pdsim_version.hpp"
 #include "src/bed_file.hpp"
 #include "src/format.hpp"
+#include "src/slurm.hpp"
 
 namespace pdsim {
 
@@ -207,12 +209,119 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
   return s.str();
 }
 
+namespace {
+
+// Grid run k's results when its file holds them (of this run's deck), else nothing.
+std::optional<Results> finished_run(const Deck& run) {
+  std::error_code ignored;
+  if (!fs::exists(run.output.file, ignored)) return std::nullopt;
+  Results done = read_results(run.output.file);
+  if (done.meta_text["deck"] != run.text)
+    throw InputError(run.output.file +
+                     ": a run of another map (the deck changed); run the map anew with --force");
+  return done;
+}
+
+// Runs grid run k (0-based) of `runs` into its file, from its checkpoint with `resume`.
+void run_grid_run(const std::vector<Deck>& runs, std::size_t k, const MapOptions& options,
+                  bool resume, const std::string& folder) {
+  const Deck& run = runs[k];
+  const std::string& file = run.output.file;
+  std::error_code ignored;
+  RunOptions o;
+  o.output = file;
+  o.resume = resume && fs::exists(file + ".partial", ignored);
+  o.force = options.force;
+  o.quiet = options.quiet;
+  o.threads = options.threads;
+  o.jobs = options.jobs;
+  o.backend = options.backend;
+  if (!options.quiet) {
+    const ExcitationSpec& x = run.excitation;
+    std::cerr << "map run " << k + 1 << " of " << runs.size() << ": "
+              << (x.amplitudes.empty() ? "amplitude " + number(x.motion.amplitude) + " m"
+                                       : number(x.frequencies.front()) + " Hz, amplitudes stepped")
+              << " -> " << file << (o.resume ? ", from its checkpoint" : "") << "\n";
+  }
+  try {
+    run_deck(run, o);
+  } catch (const Interrupted& e) {
+    throw Interrupted(std::string(e.what()) + "; finished map runs are in " + folder +
+                      ", continue the map with pdsim map --resume");
+  } catch (const InputError& e) {
+    if (fs::exists(file, ignored) && !resume && !options.force)
+      throw InputError(std::string(e.what()) +
+                       " (a map run left by an earlier map: continue it with --resume, or "
+                       "run the map anew with --force)");
+    throw;
+  }
+}
+
+// --slurm: the runs not finished as a job array, `pdsim map --collect` after it.
+RunReport submit_map(const Deck& deck, const MapOptions& options, const std::string& path,
+                     const std::string& folder, const std::vector<Deck>& runs) {
+  const int threads = options.threads > 0 ? options.threads : std::max(1, deck.solver.threads);
+  const std::vector<std::string> given = sbatch_options(options.sbatch, "--sbatch");
+  std::error_code ignored;
+  if (options.force && deck.bed.file.empty()) fs::remove(fs::path(folder) / "bed.h5", ignored);
+  SlurmArray job;
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    const std::string& file = runs[k].output.file;
+    if (options.force) {
+      fs::remove(file, ignored);
+      fs::remove(file + ".partial", ignored);
+    } else if (!options.resume &&
+               (fs::exists(file, ignored) || fs::exists(file + ".partial", ignored))) {
+      throw InputError(file +
+                       ": a run of an earlier map; use --resume to keep finished runs and "
+                       "continue interrupted ones, or --force to run the map anew");
+    }
+    if (finished_run(runs[k])) continue;
+    if (output_locked(file))
+      throw InputError(
+          file + ": is being run (its lock is held); wait for it, or cancel it and use --resume");
+    job.tasks.push_back(static_cast<int>(k + 1));
+    job.memory_mib = std::max(
+        job.memory_mib,
+        memory_estimate_mib(runs[k], build_scene(runs[k], threads, options.backend), threads));
+  }
+  const std::string exe = shell_quoted(this_executable());
+  const std::string map_command =
+      exe + " map " + shell_quoted(deck.path) + " --output " + shell_quoted(path);
+  if (job.tasks.empty())
+    return {"", "nothing to submit: every run of the map has finished; `pdsim map " + deck.path +
+                    " --collect` writes the map"};
+  job.name = "pdsim-" + fs::path(path).stem().string();
+  job.threads = threads;
+  job.log = (fs::path(folder) / "m%3a.log").string();
+  job.script = (fs::path(folder) / "slurm_array.sh").string();
+  job.body = "exec " + map_command + " --run \"$SLURM_ARRAY_TASK_ID\" --threads " +
+             std::to_string(threads) + " --quiet" +
+             (options.backend ? std::string(" --backend ") + backend_name(*options.backend)
+                              : std::string()) +
+             "\n";
+  job.collect = map_command + " --collect --quiet";
+  job.collect_log = (fs::path(folder) / "collect.log").string();
+  job.options = deck.cluster.sbatch;
+  job.options.insert(job.options.end(), given.begin(), given.end());
+  const SlurmJobs ids = submit_array(job);
+  return {"", "map: " + submitted(job, ids, runs.size(), "runs", path,
+                                  "pdsim map " + deck.path + " --slurm --resume")};
+}
+
+}  // namespace
+
 RunReport run_map(const Deck& deck, const MapOptions& options) {
   const std::string path = options.output.empty() ? output_beside(deck, "_map.h5") : options.output;
   const std::string folder = runs_folder(path);
   const std::vector<Deck> runs = map_runs(deck, folder);
+  if (!options.slurm && !options.sbatch.empty()) throw InputError("--sbatch: only with --slurm");
+  if (options.run > static_cast<int>(runs.size()))
+    throw InputError("--run " + std::to_string(options.run) + ": the map has runs 1 to " +
+                     std::to_string(runs.size()));
   std::error_code ignored;
-  if (fs::exists(path, ignored) && !options.force)
+  const bool whole = options.run == 0 && !options.collect;  // runs every run, then the map
+  if (whole && fs::exists(path, ignored) && !options.force)
     throw InputError(path + ": map file exists; use --force to run the map anew");
   if (!fs::exists(folder, ignored)) {
     const fs::path parent = fs::path(folder).parent_path();
@@ -220,51 +329,35 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
       throw InputError(path + ": the folder " + parent.string() + " does not exist");
     fs::create_directories(folder, ignored);
   }
+  if (options.slurm) return submit_map(deck, options, path, folder, runs);
+  if (options.run > 0) {  // a Slurm task: its run, kept when finished, else continued
+    const auto k = static_cast<std::size_t>(options.run - 1);
+    if (finished_run(runs[k])) return {"", runs[k].output.file + ": finished earlier, kept"};
+    run_grid_run(runs, k, options, true, folder);
+    return {"", "map run " + std::to_string(options.run) + " of " + std::to_string(runs.size()) +
+                    " finished: " + runs[k].output.file};
+  }
   // The bed the runs share is settled anew with them.
-  if (options.force && deck.bed.file.empty()) fs::remove(fs::path(folder) / "bed.h5", ignored);
+  if (options.force && deck.bed.file.empty() && whole)
+    fs::remove(fs::path(folder) / "bed.h5", ignored);
   std::vector<Results> results;
+  std::string missing;
   for (std::size_t k = 0; k < runs.size(); ++k) {
-    const Deck& run = runs[k];
-    const std::string& file = run.output.file;
-    if (options.resume && !options.force && fs::exists(file, ignored)) {
-      Results done = read_results(file);
-      if (done.meta_text["deck"] != run.text)
-        throw InputError(file +
-                         ": a run of another map (the deck changed); run the map anew "
-                         "with --force");
-      results.push_back(std::move(done));
+    std::optional<Results> done;
+    if ((options.resume && !options.force) || options.collect) done = finished_run(runs[k]);
+    if (!done && options.collect) {
+      missing += (missing.empty() ? "" : ", ") + std::to_string(k + 1);
       continue;
     }
-    RunOptions o;
-    o.output = file;
-    o.resume = options.resume && !options.force && fs::exists(file + ".partial", ignored);
-    o.force = options.force;
-    o.quiet = options.quiet;
-    o.threads = options.threads;
-    o.jobs = options.jobs;
-    o.backend = options.backend;
-    if (!options.quiet) {
-      const ExcitationSpec& x = run.excitation;
-      std::cerr << "map run " << k + 1 << " of " << runs.size() << ": "
-                << (x.amplitudes.empty()
-                        ? "amplitude " + number(x.motion.amplitude) + " m"
-                        : number(x.frequencies.front()) + " Hz, amplitudes stepped")
-                << " -> " << file << "\n";
+    if (!done) {
+      run_grid_run(runs, k, options, options.resume && !options.force, folder);
+      done = read_results(runs[k].output.file);
     }
-    try {
-      run_deck(run, o);
-    } catch (const Interrupted& e) {
-      throw Interrupted(std::string(e.what()) + "; finished map runs are in " + folder +
-                        ", continue the map with pdsim map --resume");
-    } catch (const InputError& e) {
-      if (fs::exists(file, ignored) && !options.resume && !options.force)
-        throw InputError(std::string(e.what()) +
-                         " (a map run left by an earlier map: continue it with --resume, or "
-                         "run the map anew with --force)");
-      throw;
-    }
-    results.push_back(read_results(file));
+    results.push_back(std::move(*done));
   }
+  if (!missing.empty())
+    throw std::runtime_error("the map's runs " + missing + " of " + std::to_string(runs.size()) +
+                             " have not finished (their files in " + folder + "); no map written");
 
   Results map;
   map.meta_text = results.front().meta_text;

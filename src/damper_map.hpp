@@ -20,6 +20,10 @@ struct MapOptions {
   bool resume = false;  // keep finished runs, continue an interrupted one
   bool force = false;   // run every grid point anew
   bool quiet = false;
+  int run = 0;           // run only this grid run (1 to N), as a Slurm task does; 0 = every one
+  bool collect = false;  // run nothing: the map from its finished runs
+  bool slurm = false;    // submit the runs as a Slurm job array instead
+  std::string sbatch;    // more sbatch options for --slurm, after the deck's [cluster] sbatch
 };
 
 // The map's runs, in order: one per amplitude over the map's frequencies, or one per
@@ -37,7 +41,12 @@ MapTable map_rows(const std::vector<Deck>& runs, const std::vector<Results>& res
 // is refused now, naming its point).
 std::string check_map(const Deck& deck, int threads, std::optional<Backend> backend);
 
-// Runs every grid point not yet finished and writes the map.
+// Runs every grid point not yet finished and writes the map. With options.run only that run
+// (skipped when finished, continued from its checkpoint), no map; with options.collect no run,
+// the map from the runs when every one has finished (else SimulationError naming the others);
+// with options.slurm no run: the runs not finished as one Slurm job array (task K runs
+// `pdsim map --run K`) and `pdsim map --collect` after it (src/slurm.hpp). Without a map
+// written, the report's output is empty.
 RunReport run_map(const Deck& deck, const MapOptions& options);
 
 }  // namespace pdsim

@@ -107,6 +107,17 @@ int main(int argc, char** argv) {
                 "keep finished runs and continue an interrupted one");
   map->add_flag("--force", map_options.force, "run every grid point anew, overwriting");
   map->add_flag("--quiet", map_options.quiet, "no progress lines");
+  map->add_option("--run", map_options.run,
+                  "run only this grid run (1 to N), kept when finished, else continued from its "
+                  "checkpoint; no map (a Slurm task)")
+      ->check(kCount);
+  map->add_flag("--collect", map_options.collect,
+                "run nothing: the map from its runs, once every one has finished");
+  map->add_flag("--slurm", map_options.slurm,
+                "submit the runs as a Slurm job array, and a job after it that writes the map");
+  map->add_option("--sbatch", map_options.sbatch,
+                  "with --slurm: more sbatch options, quoted as one, after the deck's [cluster] "
+                  "sbatch");
 
   pdsim::PredictOptions predict_options;
   auto* predict = app.add_subcommand(
@@ -153,7 +164,8 @@ int main(int argc, char** argv) {
     if (*map) {
       map_options.backend = parse_backend(backend);
       const pdsim::RunReport report = pdsim::run_map(deck, map_options);
-      std::cout << "wrote " << report.output << "\n" << report.summary << "\n";
+      if (!report.output.empty()) std::cout << "wrote " << report.output << "\n";
+      std::cout << report.summary << "\n";
       return 0;
     }
     if (*predict) {

@@ -26,6 +26,7 @@
 #include "src/format.hpp"
 #include "src/run.hpp"
 #include "src/scene.hpp"
+#include "src/slurm.hpp"
 
 extern char** environ;
 
@@ -309,78 +310,6 @@ std::vector<Deck> checked_points(const Deck& deck, int threads, std::optional<Ba
   return points;
 }
 
-// A word for a bash script: single-quoted, each ' written as '\''.
-std::string quoted(const std::string& word) {
-  std::string q = "'";
-  for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-// Runs a program found on PATH; returns its exit code (-1: it could not start) and what it
-// printed, standard output and error together.
-std::pair<int, std::string> run_program(const std::vector<std::string>& args) {
-  int fd[2];
-  if (pipe(fd) != 0) throw SimulationError(std::string("pipe: ") + std::strerror(errno));
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_adddup2(&actions, fd[1], 1);
-  posix_spawn_file_actions_adddup2(&actions, fd[1], 2);
-  posix_spawn_file_actions_addclose(&actions, fd[0]);
-  posix_spawn_file_actions_addclose(&actions, fd[1]);
-  std::vector<std::string> words = args;
-  std::vector<char*> argv;
-  for (auto& a : words) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = 0;
-  const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  close(fd[1]);
-  std::string out;
-  if (rc == 0) {
-    char buffer[4096];
-    for (ssize_t n; (n = read(fd[0], buffer, sizeof buffer)) != 0;)
-      if (n > 0)
-        out.append(buffer, static_cast<std::size_t>(n));
-      else if (errno != EINTR)
-        break;
-  }
-  close(fd[0]);
-  if (rc != 0) return {-1, std::strerror(rc)};
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
-}
-
-// sbatch with `options`; returns the job id it printed (--parsable: "ID" or "ID;CLUSTER").
-std::string sbatch(const std::vector<std::string>& options) {
-  std::vector<std::string> args = {"sbatch", "--parsable"};
-  args.insert(args.end(), options.begin(), options.end());
-  const auto [code, out] = run_program(args);
-  std::string id = out.substr(0, out.find_first_of(";\n"));
-  const bool numeric = !id.empty() && id.find_first_not_of("0123456789") == std::string::npos;
-  if (code == -1)
-    throw InputError("--slurm: cannot start sbatch (" + out +
-                     "); is this a Slurm login node with sbatch on PATH?");
-  if (code != 0 || !numeric)
-    throw std::runtime_error("--slurm: sbatch failed (exit code " + std::to_string(code) +
-                             "): " + out.substr(0, 1000));
-  return id;
-}
-
-// "1-3,5,7-9" for the points 1, 2, 3, 5, 7, 8, 9 (a job array's indices).
-std::string index_ranges(const std::vector<int>& points) {
-  std::string ranges;
-  for (std::size_t i = 0; i < points.size();) {
-    std::size_t j = i;
-    while (j + 1 < points.size() && points[j + 1] == points[j] + 1) ++j;
-    ranges += (ranges.empty() ? "" : ",") + std::to_string(points[i]) +
-              (j > i ? "-" + std::to_string(points[j]) : "");
-    i = j + 1;
-  }
-  return ranges;
-}
-
 // --slurm: the points not finished, as one job array, and a collect job after it (run_sweep).
 int submit_slurm(const Deck& deck, const SweepOptions& o, const std::string& folder,
                  const std::vector<Point>& points, int threads, double memory_mib) {
@@ -419,72 +348,45 @@ int submit_slurm(const Deck& deck, const SweepOptions& o, const std::string& fol
     return 0;
   }
 
-  const fs::path here = fs::current_path();
-  const std::string exe = fs::read_symlink("/proc/self/exe").string();
+  const std::string exe = shell_quoted(this_executable());
   const std::string files = fs::path(points.front().file).parent_path().string();
   const std::string digits = std::to_string(point_file(deck, 1).size() - 4);  // "p001.h5"
-  const std::string name = "pdsim-" + fs::path(folder).filename().string();
-  std::vector<std::string> extra = deck.cluster.sbatch;
-  for (const auto& option : sbatch_options(o.sbatch, "--sbatch")) extra.push_back(option);
-  std::vector<std::string> array = {
-      "--job-name=" + name,
-      "--chdir=" + here.string(),
-      "--array=" + index_ranges(submit) + (o.jobs > 0 ? "%" + std::to_string(o.jobs) : ""),
-      "--cpus-per-task=" + std::to_string(threads),
-      "--mem=" + std::to_string(static_cast<long>(std::ceil(memory_mib))) + "M",
-      "--requeue",
-      "--output=" + (here / files / ("p%" + digits + "a.log")).string()};
-  array.insert(array.end(), extra.begin(), extra.end());  // the user's options win
-  const std::string script = (fs::path(folder) / "slurm_array.sh").string();
-  {
-    std::string command = "sbatch";
-    for (const auto& a : array) command += " " + quoted(a);
-    std::ofstream out(script + ".partial");
-    out << "#!/bin/bash\n"
-        << "# pdsim sweep " << deck.path
-        << " --slurm: task K of the job array runs sweep point K,\n"
-        << "# from its checkpoint when it has one (requeued, resubmitted), not at all when its\n"
-        << "# file is there. Submitted as\n# " << command << " " << script << "\n"
-        << "set -eu\n"
-        << "point=$SLURM_ARRAY_TASK_ID\n"
-        << "file=$(printf '%s/p%0" << digits << "d.h5' " << quoted(files) << " \"$point\")\n"
-        << "if [ -e \"$file\" ]; then echo \"$file: finished earlier, kept\"; exit 0; fi\n"
-        << "resume=\n"
-        << "if [ -e \"$file.partial\" ]; then\n"
-        << "  resume=--resume\n"
-        << "  echo \"point $point: continuing from $file.partial\"\n"
-        << "fi\n"
-        << "exec " << quoted(exe) << " run " << quoted(deck.path)
-        << " --point \"$point\" --output \"$file\" --threads " << threads << " --quiet"
-        << (o.backend ? std::string(" --backend ") + backend_name(*o.backend) : std::string())
-        << " $resume\n";
-    out.close();
-    if (!out) throw SimulationError(script + ": could not be written");
-    fs::rename(script + ".partial", script);
-  }
-  array.push_back(script);
-  const std::string array_id = sbatch(array);
-  std::vector<std::string> collect = {"--job-name=" + name + "-collect", "--chdir=" + here.string(),
-                                      "--dependency=afterany:" + array_id, "--cpus-per-task=1",
-                                      "--output=" + (here / folder / "collect.log").string()};
-  collect.insert(collect.end(), extra.begin(), extra.end());
-  collect.push_back("--wrap=" + quoted(exe) + " sweep " + quoted(deck.path) + " --output " +
-                    quoted(folder) + " --collect");
-  const std::string collect_id = sbatch(collect);
-  std::printf(
-      "sweep: %zu of %d points submitted to Slurm as job array %s (%d thread%s, %.0f MiB "
-      "each%s), files in %s/\n",
-      submit.size(), count, array_id.c_str(), threads, threads > 1 ? "s" : "",
-      std::ceil(memory_mib),
-      o.jobs > 0 ? (", " + std::to_string(o.jobs) + " at a time").c_str() : "", folder.c_str());
+  SlurmArray job;
+  job.name = "pdsim-" + fs::path(folder).filename().string();
+  job.tasks = submit;
+  job.at_once = o.jobs;
+  job.threads = threads;
+  job.memory_mib = memory_mib;
+  job.log = (fs::path(files) / ("p%" + digits + "a.log")).string();
+  job.script = (fs::path(folder) / "slurm_array.sh").string();
+  // Task K runs point K as the local sweep does: from its checkpoint when it has one
+  // (requeued, resubmitted), not at all when its file is there.
+  job.body =
+      "point=$SLURM_ARRAY_TASK_ID\n"
+      "file=$(printf '%s/p%0" +
+      digits + "d.h5' " + shell_quoted(files) + " \"$point\")\n" +
+      "if [ -e \"$file\" ]; then echo \"$file: finished earlier, kept\"; exit 0; fi\n"
+      "resume=\n"
+      "if [ -e \"$file.partial\" ]; then\n"
+      "  resume=--resume\n"
+      "  echo \"point $point: continuing from $file.partial\"\n"
+      "fi\n"
+      "exec " +
+      exe + " run " + shell_quoted(deck.path) +
+      " --point \"$point\" --output \"$file\" --threads " + std::to_string(threads) + " --quiet" +
+      (o.backend ? std::string(" --backend ") + backend_name(*o.backend) : std::string()) +
+      " $resume\n";
+  job.collect = exe + " sweep " + shell_quoted(deck.path) + " --output " + shell_quoted(folder) +
+                " --collect";
+  job.collect_log = (fs::path(folder) / "collect.log").string();
+  job.options = deck.cluster.sbatch;
+  for (const auto& option : sbatch_options(o.sbatch, "--sbatch")) job.options.push_back(option);
+  const SlurmJobs ids = submit_array(job);
+  std::printf("sweep: %s\n", submitted(job, ids, points.size(), "points", folder + "/summary.csv",
+                                       "pdsim sweep " + deck.path + " --slurm --resume")
+                                 .c_str());
   if (!running.empty())
     std::printf("points %s are running and were not submitted\n", running.c_str());
-  std::printf("job %s writes %s/summary.csv once the array has ended\n", collect_id.c_str(),
-              folder.c_str());
-  std::printf("watch: squeue -j %s,%s; pdsim sweep %s --status\n", array_id.c_str(),
-              collect_id.c_str(), deck.path.c_str());
-  std::printf("continue after a cancel or time limit: pdsim sweep %s --slurm --resume\n",
-              deck.path.c_str());
   return 0;
 }
 

@@ -117,6 +117,46 @@ TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once i
   fs::remove_all(dir);
 }
 
+// A map (4 runs: 2 accelerations x 2 frequencies) run one grid run at a time, as Slurm's tasks
+// run it (`pdsim map --run K`), then collected (`--collect`), is the map run whole: the ball's
+// physics and the same numbers.
+TEST_CASE("a map run a grid run at a time and collected is the map run whole") {
+  const fs::path dir = fs::temp_directory_path() / ("pdsim_map_runs_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const Deck deck = parse_deck(kBallDeck, "ball.toml");
+  MapOptions whole;
+  whole.output = (dir / "whole_map.h5").string();
+  whole.quiet = true;
+  whole.jobs = 1;
+  const MapTable m = read_results(run_map(deck, whole).output).map;
+  MapOptions task = whole;
+  task.output = (dir / "split_map.h5").string();
+  task.collect = true;
+  CHECK_THROWS_WITH_AS(run_map(deck, task),
+                       doctest::Contains("runs 1, 2, 3, 4 of 4 have not finished"),
+                       std::runtime_error);
+  task.collect = false;
+  task.run = 2;
+  CHECK(run_map(deck, task).output.empty());  // a run, no map
+  CHECK(run_map(deck, task).summary.find("finished earlier, kept") != std::string::npos);
+  task.run = 5;
+  CHECK_THROWS_WITH_AS(run_map(deck, task), doctest::Contains("the map has runs 1 to 4"),
+                       InputError);
+  for (int k : {1, 3, 4}) {
+    task.run = k;
+    run_map(deck, task);
+  }
+  task.run = 0;
+  task.collect = true;
+  const MapTable n = read_results(run_map(deck, task).output).map;
+  check_ball(n);
+  CHECK(n.frequency == m.frequency);
+  CHECK(n.effective_mass == m.effective_mass);
+  CHECK(n.effective_damping == m.effective_damping);
+  CHECK(n.force_amplitude == m.force_amplitude);
+  fs::remove_all(dir);
+}
+
 // Stepped up and back down at each frequency, the ball carried from one amplitude to the next:
 // it slides at 3 g and rolls again at 0.1 g on the way down (a single ball has no hysteresis),
 // and the points come in the order they ran.

@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # `pdsim sweep --slurm` on a real single-node Slurm (tests/cluster/slurm_cluster.sh): every
 # point's file bitwise equal to the local sweep's (every dataset and attribute but the wall
-# time) and the same summary.csv; then one task cancelled mid-run (its first frequency done),
-# resubmitted with --slurm --resume, and its point bitwise the uninterrupted one. Slurm records a
-# failed task as COMPLETED here (proctrack/linuxproc), so the files are checked, not job states.
-# Usage: slurm_sweep_test.sh PDSIM DECK.
+# time) and the same summary.csv, and so are those of `srun -n 2 pdsim sweep --ranks`; then one
+# task cancelled mid-run (its first frequency done), resubmitted with --slurm --resume, and its
+# point bitwise the uninterrupted one. Slurm records a failed task as COMPLETED here
+# (proctrack/linuxproc), so the files are checked, not job states. Last, `pdsim map --slurm`
+# against the local map.
+# Usage: slurm_test.sh PDSIM DECK (a sweep deck; the map deck is made from it).
 set -euo pipefail
 pdsim=$(realpath "$1")
 deck=$(realpath "$2")
-for program in munged slurmctld slurmd sbatch squeue scancel; do
+for program in munged slurmctld slurmd sbatch srun squeue scancel; do
   if ! command -v "$program" >/dev/null; then
     echo "FAIL: $program is not installed (bash .ci/install-deps installs Slurm and munge)"
     exit 1
@@ -38,7 +40,8 @@ job_ids() {
   sed -n 's/.* as job array \([0-9]*\) .*/\1/p; s/^job \([0-9]*\) writes .*/\1/p' "$1" | paste -sd,
 }
 
-# Every dataset and attribute of two point files equal, /meta/wall_time_s aside.
+# Every dataset and attribute of two files equal, wall_time_s and the attributes named after
+# the two files aside.
 same_files() {
   /usr/bin/python3 - "$@" <<'PY'
 import sys, h5py, numpy as np
@@ -49,7 +52,7 @@ def items(path):
             if isinstance(obj, h5py.Dataset):
                 out[name] = obj[()]
             for key, value in obj.attrs.items():
-                if key != "wall_time_s":
+                if key not in ["wall_time_s"] + sys.argv[3:]:
                     out[name + "@" + key] = value
         visit("/", f)
         f.visititems(visit)
@@ -84,6 +87,14 @@ for k in 1 2 3 4; do same_files local/p00$k.h5 slurm/p00$k.h5 || fail "point $k"
 diff <(summary local/summary.csv) <(summary slurm/summary.csv) || fail "summary.csv differs"
 grep -q "4 of 4 points finished" slurm/collect.log || fail "collect.log: $(cat slurm/collect.log)"
 
+# srun as the launcher of --ranks: each rank its points (SLURM_PROCID/SLURM_NTASKS), the same
+# files, and the last rank's summary.
+timeout 120 srun -n 2 --cpus-per-task=1 "$pdsim" sweep deck.toml --ranks --jobs 1 --threads 1 \
+  -o ranked >ranked.txt 2>&1 || fail "srun --ranks: $(cat ranked.txt)"
+grep -q "rank 1 of 2: 2 of its 2 points finished" ranked.txt || fail "$(cat ranked.txt)"
+for k in 1 2 3 4; do same_files local/p00$k.h5 ranked/p00$k.h5 || fail "ranked point $k"; done
+diff <(summary local/summary.csv) <(summary ranked/summary.csv) || fail "ranked summary.csv"
+
 # A task cancelled once its point's first frequency is done, then the point resubmitted alone.
 timeout 60 "$pdsim" sweep deck.toml --slurm --jobs 1 -o cancel >cancel.txt || fail "$(cat cancel.txt)"
 jobs=$(job_ids cancel.txt)
@@ -104,4 +115,19 @@ wait_jobs "$(job_ids resume.txt)" 120
 grep -q "point 2: continuing from cancel/p002.h5.partial" cancel/p002.log || fail "point 2 started anew: $(cat cancel/p002.log)"
 same_files local/p002.h5 cancel/p002.h5 || fail "the resumed point 2"
 diff <(summary local/summary.csv) <(summary cancel/summary.csv) || fail "resumed summary.csv"
-echo "PASS: the Slurm sweep equals the local one; a cancelled task resumed to the same numbers"
+# A damper map's runs as a job array, the map written by the job after it. Its runs share one
+# settled bed, written by whichever run settles it first (the same bed, whichever): /meta/bed
+# and particle_steps say whether a run settled the bed or read it, which depends on the order
+# in which the tasks ran.
+sed '/^\[sweep\]/,$d' deck.toml >mapped.toml
+printf '[map]\namplitudes = [5e-5, 1e-3, 1e-2]\nfrequencies = [15.0, 16.0]\n' >>mapped.toml
+"$pdsim" map mapped.toml -o local_map.h5 --threads 1 --quiet >/dev/null || fail "the local map"
+timeout 60 "$pdsim" map mapped.toml -o slurm_map.h5 --slurm >map.txt || fail "$(cat map.txt)"
+grep -q "3 of 3 runs submitted" map.txt || fail "map submission: $(cat map.txt)"
+wait_jobs "$(job_ids map.txt)" 120
+[ -f slurm_map.h5 ] || fail "no map: $(cat slurm_map_runs/collect.log)"
+same_files local_map.h5 slurm_map.h5 bed particle_steps || fail "the map"
+for k in 1 2 3; do
+  same_files local_map_runs/m00$k.h5 slurm_map_runs/m00$k.h5 bed particle_steps || fail "map run $k"
+done
+echo "PASS: the Slurm sweep and map equal the local ones; a cancelled task resumed to the same numbers"

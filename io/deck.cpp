@@ -781,9 +781,11 @@ MapSpec read_map(const Table& t) {
 ClusterSpec read_cluster(const Table& t) {
   ClusterSpec c;
   t.allow_only({"sbatch"});
-  const std::string text = t.text("sbatch").value_or("");
+  c.sbatch = t.text("sbatch").value_or("");
   try {
-    c.sbatch = sbatch_options(text, "");
+    // Checked here, split where a job is submitted: a compute node that reads the deck again
+    // may lack the login node's variables.
+    sbatch_options(c.sbatch, "", false);
   } catch (const InputError& e) {
     t.fail("sbatch", e.what());
   }
@@ -1120,10 +1122,11 @@ Deck parse_deck(const std::string& text, const std::string& path) {
   return read_deck(parse_root(text, path), text, path);
 }
 
-std::vector<std::string> sbatch_options(const std::string& text, const std::string& what) {
+std::vector<std::string> sbatch_options(const std::string& text, const std::string& what,
+                                        bool defined) {
   const std::string named = what.empty() ? "" : what + ": ";
   wordexp_t words;
-  const int rc = wordexp(text.c_str(), &words, WRDE_NOCMD | WRDE_UNDEF);
+  const int rc = wordexp(text.c_str(), &words, WRDE_NOCMD | (defined ? WRDE_UNDEF : 0));
   if (rc != 0) {
     if (rc == WRDE_NOSPACE) wordfree(&words);
     throw InputError(named + "expected sbatch options as a shell would split them, got '" + text +
@@ -1145,9 +1148,9 @@ std::vector<std::string> sbatch_options(const std::string& text, const std::stri
                          " is set by pdsim sweep --slurm itself (the array of points, the "
                          "collect job after it); leave it out");
     }
-    if (o.empty() || o[0] != '-')
-      throw InputError(named + "expected options starting with -, got '" + o + "'");
   }
+  if (!options.empty() && options.front().rfind('-', 0) != 0)  // later words may be values
+    throw InputError(named + "expected options starting with -, got '" + options.front() + "'");
   return options;
 }
 

@@ -60,11 +60,12 @@ Deck parse_deck(const std::string& text, const std::string& path);
 // switch joins the deck's text, its provenance.
 Deck with_snapshots(Deck deck, double every);
 
-// sbatch options written as a shell would split them ("--partition=short --time='1:00:00'"),
-// variables expanded, no commands run. Throws InputError saying what is wrong, after "what: "
-// unless `what` is empty; options that `pdsim sweep --slurm` sets itself (--array, --wrap,
-// --parsable, --dependency) are refused.
-std::vector<std::string> sbatch_options(const std::string& text, const std::string& what);
+// sbatch options written as a shell would split them ("--partition=short -t '1:00:00'"),
+// variables expanded (an undefined one refused when `defined`), no commands run. Throws
+// InputError saying what is wrong, after "what: " unless `what` is empty; options that
+// `pdsim sweep --slurm` sets itself (--array, --wrap, --parsable, --dependency) are refused.
+std::vector<std::string> sbatch_options(const std::string& text, const std::string& what,
+                                        bool defined = true);
 
 // Sweep point `point` (1 to deck.sweep.points()) of a deck: the deck with that point's values,
 // validated. An error names the [sweep] entry that set the value, and the point.

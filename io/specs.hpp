@@ -122,7 +122,8 @@ struct OutputSpec {
 
 // Where the points of a sweep run on a Slurm cluster (`pdsim sweep --slurm`), the [cluster] table.
 struct ClusterSpec {
-  std::vector<std::string> sbatch;  // sbatch options (partition, account, time limit, ...)
+  std::string sbatch;  // sbatch options (partition, account, time limit, ...), split (and its
+                       // variables expanded) only where a job is submitted
 };
 
 // A damper map, the [map] table (`pdsim map`): the deck's dampers under prescribed sinusoidal

@@ -71,13 +71,7 @@ std::string check_report(const Deck& deck, const Scene& scene) {
       << " m/s for " << kBedHold_s << " s (at most " << deck.bed.max_time << " s)"
       << (deck.bed.file.empty() ? "" : "; kept in " + deck.bed.file) << "\n";
   // Estimated cost: simulated time x steps/s x particles, at an assumed 1e7 particle-steps/s.
-  double simulated = 0;
-  if (judged)
-    for (double f :
-         (x.frequencies.empty() ? std::vector<double>{x.motion.frequency} : x.frequencies))
-      simulated += settle.max_realisations * settle.max_periods / f;
-  else
-    simulated = x.duration * static_cast<double>(std::max<std::size_t>(1, x.frequencies.size()));
+  const double simulated = simulated_time_bound(deck);
   s << "simulated time: at most " << simulated << " s";
   if (total_particles > 0) {
     const double particle_steps =

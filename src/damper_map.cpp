@@ -261,52 +261,56 @@ void run_grid_run(const std::vector<Deck>& runs, std::size_t k, const MapOptions
 RunReport submit_map(const Deck& deck, const MapOptions& options, const std::string& path,
                      const std::string& folder, const std::vector<Deck>& runs) {
   const int threads = options.threads > 0 ? options.threads : std::max(1, deck.solver.threads);
-  const std::vector<std::string> given = sbatch_options(options.sbatch, "--sbatch");
-  std::error_code ignored;
-  if (options.force && deck.bed.file.empty()) fs::remove(fs::path(folder) / "bed.h5", ignored);
   SlurmArray job;
-  for (std::size_t k = 0; k < runs.size(); ++k) {
-    const std::string& file = runs[k].output.file;
-    if (options.force) {
-      fs::remove(file, ignored);
-      fs::remove(file + ".partial", ignored);
-    } else if (!options.resume &&
-               (fs::exists(file, ignored) || fs::exists(file + ".partial", ignored))) {
-      throw InputError(file +
-                       ": a run of an earlier map; use --resume to keep finished runs and "
-                       "continue interrupted ones, or --force to run the map anew");
-    }
-    if (finished_run(runs[k])) continue;
-    if (output_locked(file))
-      throw InputError(
-          file + ": is being run (its lock is held); wait for it, or cancel it and use --resume");
-    job.tasks.push_back(static_cast<int>(k + 1));
-    job.memory_mib = std::max(
-        job.memory_mib,
-        memory_estimate_mib(runs[k], build_scene(runs[k], threads, options.backend), threads));
+  job.script = (fs::path(folder) / "slurm_array.sh").string();
+  refuse_if_queued(job.script);
+  job.options = sbatch_options(deck.cluster.sbatch, "[cluster] sbatch");
+  for (const auto& option : sbatch_options(options.sbatch, "--sbatch"))
+    job.options.push_back(option);
+  std::vector<std::string> files;
+  std::vector<bool> finished;
+  for (const Deck& run : runs) {
+    files.push_back(run.output.file);
+    finished.push_back(!options.force && options.resume && finished_run(run));
   }
-  const std::string exe = shell_quoted(this_executable());
-  const std::string map_command =
-      exe + " map " + shell_quoted(deck.path) + " --output " + shell_quoted(path);
+  std::vector<int> running;
+  job.tasks = pieces_to_submit(files, finished, options.resume, options.force, running);
+  std::error_code ignored;
+  if (options.force) {  // the map and the bed its runs share are made anew with them
+    fs::remove(path, ignored);
+    if (deck.bed.file.empty()) fs::remove(fs::path(folder) / "bed.h5", ignored);
+  }
+  std::string note;
+  for (int k : running) note += (note.empty() ? "runs " : ", ") + std::to_string(k);
+  if (!note.empty()) note += " are running and are not submitted\n";
+  const std::string map = shell_quoted(this_executable()) + " map " + shell_quoted(deck.path) +
+                          " --output " + shell_quoted(path);
   if (job.tasks.empty())
-    return {"", "nothing to submit: every run of the map has finished; `pdsim map " + deck.path +
-                    " --collect` writes the map"};
+    return {"",
+            note + "nothing to submit: " + pdsim_command("map", deck.path, path, "", " --collect") +
+                " writes the map once every run has finished"};
+  for (int k : job.tasks) {
+    const Deck& run = runs[static_cast<std::size_t>(k - 1)];
+    job.memory_mib =
+        std::max(job.memory_mib,
+                 memory_estimate_mib(run, build_scene(run, threads, options.backend), threads));
+  }
   job.name = "pdsim-" + fs::path(path).stem().string();
   job.threads = threads;
   job.log = (fs::path(folder) / "m%3a.log").string();
-  job.script = (fs::path(folder) / "slurm_array.sh").string();
-  job.body = "exec " + map_command + " --run \"$SLURM_ARRAY_TASK_ID\" --threads " +
+  job.body = "exec " + map + " --run \"$SLURM_ARRAY_TASK_ID\" --threads " +
              std::to_string(threads) + " --quiet" +
+             (options.jobs > 0 ? " --jobs " + std::to_string(options.jobs) : std::string()) +
              (options.backend ? std::string(" --backend ") + backend_name(*options.backend)
                               : std::string()) +
              "\n";
-  job.collect = map_command + " --collect --quiet";
+  job.collect = map + " --collect --quiet";
   job.collect_log = (fs::path(folder) / "collect.log").string();
-  job.options = deck.cluster.sbatch;
-  job.options.insert(job.options.end(), given.begin(), given.end());
   const SlurmJobs ids = submit_array(job);
-  return {"", "map: " + submitted(job, ids, runs.size(), "runs", path,
-                                  "pdsim map " + deck.path + " --slurm --resume")};
+  return {"", note + "map: " +
+                  submitted(
+                      job, ids, runs.size(), "runs", path,
+                      pdsim_command("map", deck.path, path, options.sbatch, " --slurm --resume"))};
 }
 
 }  // namespace
@@ -316,6 +320,10 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   const std::string folder = runs_folder(path);
   const std::vector<Deck> runs = map_runs(deck, folder);
   if (!options.slurm && !options.sbatch.empty()) throw InputError("--sbatch: only with --slurm");
+  if (options.slurm && (options.run > 0 || options.collect))
+    throw InputError(std::string("--slurm and ") + (options.run > 0 ? "--run" : "--collect") +
+                     ": choose one (--slurm submits the runs)");
+  if (options.run > 0 && options.collect) throw InputError("--run and --collect: choose one");
   if (options.run > static_cast<int>(runs.size()))
     throw InputError("--run " + std::to_string(options.run) + ": the map has runs 1 to " +
                      std::to_string(runs.size()));

@@ -43,7 +43,7 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
 
 // Runs every grid point not yet finished and writes the map. With options.run only that run
 // (skipped when finished, continued from its checkpoint), no map; with options.collect no run,
-// the map from the runs when every one has finished (else SimulationError naming the others);
+// the map from the runs when every one has finished (else std::runtime_error naming the others);
 // with options.slurm no run: the runs not finished as one Slurm job array (task K runs
 // `pdsim map --run K`) and `pdsim map --collect` after it (src/slurm.hpp). Without a map
 // written, the report's output is empty.

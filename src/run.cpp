@@ -85,12 +85,29 @@ int runs_side_by_side(const Deck& deck, int threads, int jobs) {
       1, std::min(side_by_side_tasks(deck), jobs > 0 ? jobs : total_threads(deck, threads)));
 }
 
+double simulated_time_bound(const Deck& deck) {
+  const ExcitationSpec& x = deck.excitation;
+  if (!runs_to_steady_state(x))
+    return x.duration * static_cast<double>(std::max<std::size_t>(1, x.frequencies.size()));
+  double simulated = 0;
+  for (double f : (x.frequencies.empty() ? std::vector<double>{x.motion.frequency} : x.frequencies))
+    simulated += x.settle.max_realisations * x.settle.max_periods / f;
+  return simulated;
+}
+
 double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads) {
-  std::size_t particles = 0;
-  for (const DamperScene& d : scene.dampers) particles += d.engine.particles.size();
+  double particles = 0;
+  for (const DamperScene& d : scene.dampers) particles += double(d.engine.particles.size());
   // Measured: a run of 20 particles peaks at 28 MiB, `pdsim bench` of 100,000 at 115 MiB
-  // (1 KiB a particle); both doubled for the records a long run keeps.
-  return 64.0 + 2.0 * static_cast<double>(particles) / 1024.0 * runs_side_by_side(deck, threads, 0);
+  // (1 KiB a particle); both doubled for the records a long run keeps, and at least 256 MiB.
+  double mib =
+      std::max(256.0, 64.0 + 2.0 * particles / 1024.0 * runs_side_by_side(deck, threads, 0));
+  // Particle snapshots are held until the file is written: 11 numbers a particle each.
+  if (deck.output.particles_every > 0)
+    mib += simulated_time_bound(deck) / deck.output.particles_every * particles * 88.0 / (1 << 20);
+  // A CUDA context holds a few hundred MiB of host memory (allowed for, not measured here).
+  if (scene.backend == Backend::cuda) mib += 1024.0;
+  return mib;
 }
 
 Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {

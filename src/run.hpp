@@ -38,6 +38,8 @@ std::string output_beside(const Deck& deck, const std::string& suffix);
 // How many runs of the deck (fills, or independent frequencies) go side by side on `threads`
 // threads (0: solver.threads, else every core), `jobs` at most (0: one per thread).
 int runs_side_by_side(const Deck& deck, int threads, int jobs);
+// The simulated time a run of the deck takes at most, s (every fill to settle.max_periods).
+double simulated_time_bound(const Deck& deck);
 // Memory a run of the deck needs on `threads` threads, MiB (generous: for a scheduler's request).
 double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads);
 

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "io/results.hpp"
 #include "kernels/errors.hpp"
 
 extern char** environ;
@@ -56,19 +57,30 @@ std::pair<int, std::string> run_program(std::vector<std::string> args) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
 }
 
-// sbatch with `options`; returns the job id it printed (--parsable: "ID" or "ID;CLUSTER").
+// sbatch with `options`; returns the job id it printed (--parsable: a line "ID" or
+// "ID;CLUSTER", beside any warnings).
 std::string sbatch(const std::vector<std::string>& options) {
   std::vector<std::string> args = {"sbatch", "--parsable"};
   args.insert(args.end(), options.begin(), options.end());
   const auto [code, out] = run_program(args);
-  const std::string id = out.substr(0, out.find_first_of(";\n"));
   if (code == -1)
     throw InputError("--slurm: cannot start sbatch (" + out +
                      "); is this a Slurm login node with sbatch on PATH?");
-  if (code != 0 || id.empty() || id.find_first_not_of("0123456789") != std::string::npos)
+  std::string id;
+  std::istringstream lines(out);
+  for (std::string line; std::getline(lines, line);) {
+    line = line.substr(0, line.find(';'));
+    if (!line.empty() && line.find_first_not_of("0123456789") == std::string::npos) id = line;
+  }
+  if (code != 0 || id.empty())
     throw std::runtime_error("--slurm: sbatch failed (exit code " + std::to_string(code) +
                              "): " + out.substr(0, 1000));
   return id;
+}
+
+// Where the ids of the jobs last submitted from `script` are kept.
+std::string ids_file(const std::string& script) {
+  return script + ".jobs";
 }
 
 // "1-3,5,7-9" for the indices 1, 2, 3, 5, 7, 8, 9.
@@ -92,6 +104,13 @@ std::string shell_quoted(const std::string& word) {
   return q + "'";
 }
 
+std::string pdsim_command(const std::string& command, const std::string& deck,
+                          const std::string& output, const std::string& sbatch,
+                          const std::string& tail) {
+  return "pdsim " + command + " " + shell_quoted(deck) + " -o " + shell_quoted(output) +
+         (sbatch.empty() ? "" : " --sbatch " + shell_quoted(sbatch)) + tail;
+}
+
 std::string this_executable() {
   return fs::read_symlink("/proc/self/exe").string();
 }
@@ -110,8 +129,58 @@ std::string submitted(const SlurmArray& job, const SlurmJobs& ids, std::size_t t
   return s.str();
 }
 
+std::vector<int> pieces_to_submit(const std::vector<std::string>& files,
+                                  const std::vector<bool>& finished, bool resume, bool force,
+                                  std::vector<int>& running) {
+  std::vector<int> submit;
+  std::error_code ignored;
+  for (std::size_t k = 0; k < files.size(); ++k) {
+    const std::string& file = files[k];
+    if (finished[k]) continue;
+    if (output_locked(file)) {
+      if (!resume)
+        throw InputError(file +
+                         ": is being run (its lock is held); wait for it, or cancel it and "
+                         "submit with --resume");
+      running.push_back(static_cast<int>(k + 1));
+      continue;
+    }
+    if (!resume && !force && (fs::exists(file, ignored) || fs::exists(file + ".partial", ignored)))
+      throw InputError(file +
+                       ": left by an earlier run (its file or checkpoint); use --resume to keep "
+                       "and continue it, or --force to run it anew");
+    submit.push_back(static_cast<int>(k + 1));
+  }
+  if (force)
+    for (int k : submit) {
+      fs::remove(files[static_cast<std::size_t>(k - 1)], ignored);
+      fs::remove(files[static_cast<std::size_t>(k - 1)] + ".partial", ignored);
+    }
+  return submit;
+}
+
+void refuse_if_queued(const std::string& script) {
+  std::ifstream in(ids_file(script));
+  std::string array;
+  if (!(in >> array)) return;
+  // squeue names a job it still holds; one that has left the queue is unknown (exit 1) or
+  // listed by nobody.
+  const auto [code, out] = run_program({"squeue", "--noheader", "--jobs=" + array, "--format=%i"});
+  if (code == 0 && out.find_first_of("0123456789") != std::string::npos)
+    throw InputError(script + ": its job array " + array + " is still in the queue (squeue -j " +
+                     array + "); wait for it to end, or scancel it, before submitting again");
+}
+
+// A path for sbatch's --output, where % starts a pattern: each % doubled.
+std::string literal(const std::string& path) {
+  std::string out;
+  for (char c : path) out += c == '%' ? std::string("%%") : std::string(1, c);
+  return out;
+}
+
 SlurmJobs submit_array(const SlurmArray& job) {
   const std::string here = fs::current_path().string();
+  const fs::path log = fs::path(here) / job.log;  // its file name holds the %a pattern
   std::vector<std::string> array = {
       "--job-name=" + job.name,
       "--chdir=" + here,
@@ -120,15 +189,16 @@ SlurmJobs submit_array(const SlurmArray& job) {
       "--cpus-per-task=" + std::to_string(job.threads),
       "--mem=" + std::to_string(static_cast<long>(std::ceil(job.memory_mib))) + "M",
       "--requeue",
-      "--output=" + (fs::path(here) / job.log).string()};
+      "--output=" + literal(log.parent_path().string()) + "/" + log.filename().string()};
   array.insert(array.end(), job.options.begin(), job.options.end());  // the user's options win
   std::string command = "sbatch";
   for (const auto& a : array) command += " " + shell_quoted(a);
+  command += " " + shell_quoted(job.script);
+  for (std::size_t at = 0; (at = command.find('\n', at)) != std::string::npos; at += 3)
+    command.replace(at, 1, "\n# ");  // a path's newline stays in the comment
   {
     std::ofstream out(job.script + ".partial");
-    out << "#!/bin/bash\n# Submitted by " << this_executable() << " as\n# " << command << " "
-        << shell_quoted(job.script) << "\nset -eu\n"
-        << job.body;
+    out << "#!/bin/bash\n# Submitted by pdsim as\n# " << command << "\nset -eu\n" << job.body;
     out.close();
     if (!out) throw SimulationError(job.script + ": could not be written");
     fs::rename(job.script + ".partial", job.script);
@@ -136,11 +206,13 @@ SlurmJobs submit_array(const SlurmArray& job) {
   array.push_back(job.script);
   SlurmJobs ids;
   ids.array = sbatch(array);
-  std::vector<std::string> collect = {"--job-name=" + job.name + "-collect", "--chdir=" + here,
-                                      "--dependency=afterany:" + ids.array, "--cpus-per-task=1",
-                                      "--output=" + (fs::path(here) / job.collect_log).string()};
+  std::vector<std::string> collect = {
+      "--job-name=" + job.name + "-collect", "--chdir=" + here,
+      "--dependency=afterany:" + ids.array, "--cpus-per-task=1",
+      "--output=" + literal((fs::path(here) / job.collect_log).string())};
   collect.insert(collect.end(), job.options.begin(), job.options.end());
   collect.push_back("--wrap=" + job.collect);
+  std::ofstream(ids_file(job.script)) << ids.array << "\n";
   try {
     ids.collect = sbatch(collect);
   } catch (const std::exception& e) {

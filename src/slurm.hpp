@@ -26,6 +26,19 @@ struct SlurmJobs {
   std::string array, collect;  // job ids
 };
 
+// Which of the pieces of work (sweep points, map runs) whose outputs are `files` a submission
+// sends: every one not `finished`, except, with `resume`, those running (their output's lock
+// held: listed in `running`). Everything is checked before anything is removed: a running piece
+// without `resume`, or a file or checkpoint left without `resume` or `force`, is refused; with
+// `force` the pieces' files and checkpoints are then removed. Returns 1-based indices.
+std::vector<int> pieces_to_submit(const std::vector<std::string>& files,
+                                  const std::vector<bool>& finished, bool resume, bool force,
+                                  std::vector<int>& running);
+
+// Refuses a submission while the job array last submitted from `script` (its id kept beside it)
+// is still in Slurm's queue: its pending tasks would run the same pieces twice.
+void refuse_if_queued(const std::string& script);
+
 // Writes the script (its sbatch command in its comments) and submits the array from the
 // current folder (--chdir), with --requeue, then the collect job after it (afterany). Throws
 // InputError when sbatch cannot be started, std::runtime_error with sbatch's words when it
@@ -33,10 +46,17 @@ struct SlurmJobs {
 SlurmJobs submit_array(const SlurmArray& job);
 
 // What was submitted, for the terminal: "N of TOTAL <pieces> submitted ... as job array A",
-// the job B after it writing `result`, how to watch them and how to continue (`again`).
+// the job B after it writing `result`, how to watch them and how to continue (`again`, a
+// command).
 std::string submitted(const SlurmArray& job, const SlurmJobs& ids, std::size_t total,
                       const std::string& pieces, const std::string& result,
                       const std::string& again);
+
+// How to carry on with a submitted sweep or map: "pdsim COMMAND 'DECK' -o 'OUTPUT'", then
+// --sbatch 'SBATCH' when given, then `tail`.
+std::string pdsim_command(const std::string& command, const std::string& deck,
+                          const std::string& output, const std::string& sbatch,
+                          const std::string& tail);
 
 // A word for a bash script: single-quoted, each ' written as '\''.
 std::string shell_quoted(const std::string& word);

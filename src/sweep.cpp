@@ -313,58 +313,40 @@ std::vector<Deck> checked_points(const Deck& deck, int threads, std::optional<Ba
 // --slurm: the points not finished, as one job array, and a collect job after it (run_sweep).
 int submit_slurm(const Deck& deck, const SweepOptions& o, const std::string& folder,
                  const std::vector<Point>& points, int threads, double memory_mib) {
-  std::vector<int> submit;
-  std::string running;
+  SlurmArray job;
+  job.script = (fs::path(folder) / "slurm_array.sh").string();
+  refuse_if_queued(job.script);
+  std::vector<std::string> files;
+  std::vector<bool> finished;
   for (const Point& p : points) {
-    if (p.kept) continue;
-    if (output_locked(p.file)) {
-      if (!o.resume)
-        throw InputError(p.file +
-                         ": is being run (its lock is held); wait for it, or cancel it "
-                         "and use --resume");
-      running += (running.empty() ? "" : ", ") + std::to_string(p.index);
-      continue;
-    }
-    std::error_code ignored;
-    if (o.force) {
-      fs::remove(p.file, ignored);
-      fs::remove(p.file + ".partial", ignored);
-    } else if (!o.resume && fs::exists(p.file + ".partial", ignored)) {
-      throw InputError(p.file +
-                       ".partial: the checkpoint of an interrupted point; use --resume "
-                       "to continue it or --force to start it anew");
-    }
-    submit.push_back(p.index);
+    files.push_back(p.file);
+    finished.push_back(p.kept);
   }
-  const int count = static_cast<int>(points.size());
-  if (submit.empty()) {
-    const auto finished =
-        std::count_if(points.begin(), points.end(), [](const Point& p) { return p.kept; });
-    std::printf(
-        "nothing to submit: %d of %d points finished%s; `pdsim sweep %s --collect` "
-        "writes the summary\n",
-        static_cast<int>(finished), count,
-        running.empty() ? "" : (", points " + running + " running").c_str(), deck.path.c_str());
+  std::vector<int> running;
+  job.tasks = pieces_to_submit(files, finished, o.resume, o.force, running);
+  std::string busy;
+  for (int k : running) busy += (busy.empty() ? "" : ", ") + std::to_string(k);
+  if (!busy.empty()) std::printf("points %s are running and are not submitted\n", busy.c_str());
+  if (job.tasks.empty()) {
+    std::printf("nothing to submit: %d of %zu points finished; `%s` writes the summary\n",
+                static_cast<int>(std::count(finished.begin(), finished.end(), true)), points.size(),
+                pdsim_command("sweep", deck.path, folder, "", " --collect").c_str());
     return 0;
   }
-
   const std::string exe = shell_quoted(this_executable());
-  const std::string files = fs::path(points.front().file).parent_path().string();
+  const std::string files_in = fs::path(points.front().file).parent_path().string();
   const std::string digits = std::to_string(point_file(deck, 1).size() - 4);  // "p001.h5"
-  SlurmArray job;
   job.name = "pdsim-" + fs::path(folder).filename().string();
-  job.tasks = submit;
   job.at_once = o.jobs;
   job.threads = threads;
   job.memory_mib = memory_mib;
-  job.log = (fs::path(files) / ("p%" + digits + "a.log")).string();
-  job.script = (fs::path(folder) / "slurm_array.sh").string();
+  job.log = (fs::path(files_in) / ("p%" + digits + "a.log")).string();
   // Task K runs point K as the local sweep does: from its checkpoint when it has one
   // (requeued, resubmitted), not at all when its file is there.
   job.body =
       "point=$SLURM_ARRAY_TASK_ID\n"
       "file=$(printf '%s/p%0" +
-      digits + "d.h5' " + shell_quoted(files) + " \"$point\")\n" +
+      digits + "d.h5' " + shell_quoted(files_in) + " \"$point\")\n" +
       "if [ -e \"$file\" ]; then echo \"$file: finished earlier, kept\"; exit 0; fi\n"
       "resume=\n"
       "if [ -e \"$file.partial\" ]; then\n"
@@ -379,14 +361,15 @@ int submit_slurm(const Deck& deck, const SweepOptions& o, const std::string& fol
   job.collect = exe + " sweep " + shell_quoted(deck.path) + " --output " + shell_quoted(folder) +
                 " --collect";
   job.collect_log = (fs::path(folder) / "collect.log").string();
-  job.options = deck.cluster.sbatch;
+  job.options = sbatch_options(deck.cluster.sbatch, "[cluster] sbatch");
   for (const auto& option : sbatch_options(o.sbatch, "--sbatch")) job.options.push_back(option);
   const SlurmJobs ids = submit_array(job);
-  std::printf("sweep: %s\n", submitted(job, ids, points.size(), "points", folder + "/summary.csv",
-                                       "pdsim sweep " + deck.path + " --slurm --resume")
-                                 .c_str());
-  if (!running.empty())
-    std::printf("points %s are running and were not submitted\n", running.c_str());
+  std::printf("sweep: %s\n",
+              submitted(job, ids, points.size(), "points", folder + "/summary.csv",
+                        pdsim_command("sweep", deck.path, folder, o.sbatch, " --slurm --resume"))
+                  .c_str());
+  std::printf("each point: %s\n",
+              pdsim_command("sweep", deck.path, folder, "", " --status").c_str());
   return 0;
 }
 
@@ -404,7 +387,7 @@ std::string check_sweep(const Deck& deck, int threads, std::optional<Backend> ba
     s << "  point " << k << ": " << deck.sweep.describe(k) << "\n";
   s << "slurm (sweep --slurm): a task per point, " << task_threads << " thread"
     << (task_threads > 1 ? "s" : "") << " and " << std::ceil(memory_mib) << " MiB each";
-  for (const std::string& option : deck.cluster.sbatch) s << " " << option;
+  if (!deck.cluster.sbatch.empty()) s << ", with " << deck.cluster.sbatch;
   s << "\n";
   return s.str();
 }
@@ -427,9 +410,13 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
   if (count == 0)
     throw InputError(deck.path + ": the deck has no [sweep] table; run it with `pdsim run`");
   const std::string folder = o.folder.empty() ? sweep_folder(deck) : o.folder;
+  if (o.slurm && (o.ranks || o.status || o.collect))
+    throw InputError(std::string("--slurm and ") +
+                     (o.ranks    ? "--ranks"
+                      : o.status ? "--status"
+                                 : "--collect") +
+                     ": choose one (--slurm submits a job array)");
   if (o.status || o.collect) return read_sweep(deck, o, folder);
-  if (o.slurm && o.ranks)
-    throw InputError("--slurm and --ranks: choose one (--slurm submits a job array itself)");
   if (!o.slurm && !o.sbatch.empty()) throw InputError("--sbatch: only with --slurm");
   sbatch_options(o.sbatch, "--sbatch");  // refused before anything is checked or written
   const auto [rank, ranks] = o.ranks ? launcher_rank() : std::pair{0, 1};

@@ -13,6 +13,7 @@ daemons=()
 
 stop_cluster() {
   set +e
+  cd / # this shell must not be among the processes working in the folder
   if [ -n "${SLURM_CONF:-}" ]; then
     timeout 10 scancel --user="$(id -un)" >/dev/null 2>&1
     for _ in $(seq 50); do
@@ -23,7 +24,10 @@ stop_cluster() {
   for pid in "${daemons[@]}"; do kill "$pid" 2>/dev/null; done
   sleep 0.5
   for pid in "${daemons[@]}"; do kill -9 "$pid" 2>/dev/null; done
-  pkill -9 -f "$cluster" 2>/dev/null  # job processes whose paths are in the folder
+  # Whatever still runs in the folder (job processes, slurmstepd), by working directory.
+  for proc in /proc/[0-9]*; do
+    case "$(readlink "$proc/cwd" 2>/dev/null)" in "$cluster"*) kill -9 "${proc#/proc/}" 2>/dev/null ;; esac
+  done
   rm -rf "$cluster"
 }
 trap stop_cluster EXIT

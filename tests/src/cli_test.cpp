@@ -600,6 +600,55 @@ TEST_CASE("SIGKILL at random moments never loses a finished frequency") {
   CHECK(caught >= 3);
 }
 
+// sbatch and squeue stood in for by scripts (a Slurm is in tests/cluster/slurm_test.sh): what
+// --slurm submits, and that it checks every point before it removes anything.
+TEST_CASE("sweep --slurm submits the points not finished, and removes nothing it then refuses") {
+  Sandbox box;
+  std::ofstream(box.dir / "masses.toml") << kMassSweep;
+  fs::create_directories(box.dir / "bin");
+  // sbatch: a warning on its error stream, then the next job id; its arguments kept.
+  std::ofstream(box.dir / "bin" / "sbatch")
+      << "#!/bin/sh\necho \"$@\" >> sbatch.args\necho 'sbatch: warning: a note' >&2\n"
+         "n=$(cat next 2>/dev/null || echo 100); echo $((n + 1)) > next; echo $((n + 1))\n";
+  std::ofstream(box.dir / "bin" / "squeue") << "#!/bin/sh\ncat queued 2>/dev/null\n";
+  fs::permissions(box.dir / "bin" / "sbatch", fs::perms::owner_all);
+  fs::permissions(box.dir / "bin" / "squeue", fs::perms::owner_all);
+  const std::string slurm = "PATH=\"$PWD/bin:$PATH\" '" + std::string(PDSIM_BINARY) + "' sweep ";
+  std::string log;
+  REQUIRE(box.shell(slurm + "masses.toml --slurm --jobs 2 --sbatch '-p short'", &log) == 0);
+  CHECK(log.find("3 of 3 points submitted to Slurm as job array 101") != std::string::npos);
+  CHECK(log.find("job 102 writes m_sweep/summary.csv") != std::string::npos);
+  CHECK(log.find("pdsim sweep 'masses.toml' -o 'm_sweep' --sbatch '-p short' --slurm --resume") !=
+        std::string::npos);
+  std::string args;
+  REQUIRE(box.shell("cat sbatch.args", &args) == 0);
+  CHECK(args.find("--array=1-3%2 --cpus-per-task=1 --mem=256M --requeue") != std::string::npos);
+  CHECK(args.find("-p short m_sweep/slurm_array.sh") != std::string::npos);
+  CHECK(args.find("--dependency=afterany:101") != std::string::npos);
+  CHECK(box.shell("bash -n m_sweep/slurm_array.sh") == 0);
+  // While that array is queued, nothing more is submitted.
+  std::ofstream(box.dir / "queued") << "101_1\n";
+  CHECK(box.shell(slurm + "masses.toml --slurm --resume", &log) == 1);
+  CHECK(log.find("its job array 101 is still in the queue") != std::string::npos);
+  fs::remove(box.dir / "queued");
+  // Point 1 finished, point 2 interrupted with a checkpoint, point 3 running (its lock held).
+  REQUIRE(box.pdsim("run masses.toml --point 1 -o m_sweep/p001.h5 --quiet") == 0);
+  std::ofstream(box.dir / "m_sweep" / "p002.h5.partial") << "a checkpoint";
+  REQUIRE(box.shell("flock m_sweep/p003.h5.lock sleep 5 > /dev/null 2>&1 & "
+                    "for i in $(seq 100); do [ -e m_sweep/p003.h5.lock ] && break; sleep 0.05; "
+                    "done") == 0);
+  CHECK(box.shell(slurm + "masses.toml --slurm --force", &log) == 1);
+  CHECK(log.find("m_sweep/p003.h5: is being run") != std::string::npos);
+  CHECK(fs::exists(box.dir / "m_sweep" / "p002.h5.partial"));  // refused before removing
+  CHECK(box.shell(slurm + "masses.toml --slurm", &log) == 1);
+  CHECK(log.find("p001.h5: exists; use --resume") != std::string::npos);
+  REQUIRE(box.shell(slurm + "masses.toml --slurm --resume", &log) == 0);
+  CHECK(log.find("points 3 are running and are not submitted") != std::string::npos);
+  CHECK(log.find("1 of 3 points submitted to Slurm as job array 103") != std::string::npos);
+  REQUIRE(box.shell("tail -n 2 sbatch.args | head -n 1", &args) == 0);
+  CHECK(args.find("--array=2 ") != std::string::npos);
+}
+
 // SIGTERM is what Slurm sends at a time limit, preemption or scancel (then SIGKILL KillWait s
 // later): a run takes it as an interrupt, exit 130 with its finished frequencies kept.
 TEST_CASE("SIGTERM, as a scheduler sends it, keeps the finished frequencies for --resume") {

@@ -197,6 +197,34 @@ void write_meta(hid_t file_id, const Results& results, bool complete, const std:
   write_attribute(meta.get(), "complete", H5T_STD_I32LE, H5T_NATIVE_INT, &complete_flag, file);
 }
 
+// Row `row` of the dataset `source` (dims: rows first) as a dataset `name` of its own: an HDF5
+// virtual dataset, which holds no data, only where to read it.
+void write_row_view(hid_t group, const std::string& group_path, const std::string& name,
+                    const std::string& source, hid_t file_type, std::vector<hsize_t> dims,
+                    hsize_t row, const std::string& file, const char* units) {
+  const std::string what = "write the view " + group_path + "/" + name + " of " + source;
+  std::vector<hsize_t> start(dims.size(), 0), count = dims;
+  start[0] = row;
+  count[0] = 1;
+  Handle whole(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose,
+               file, what);
+  check(H5Sselect_hyperslab(whole.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
+                            nullptr),
+        file, what);
+  Handle view(H5Screate_simple(static_cast<int>(dims.size() - 1), dims.data() + 1, nullptr),
+              H5Sclose, file, what);
+  Handle layout(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, file, what);
+  check(H5Pset_virtual(layout.get(), view.get(), ".", source.c_str(), whole.get()), file, what);
+  Handle dataset(H5Dcreate2(group, name.c_str(), file_type, view.get(), H5P_DEFAULT, layout.get(),
+                            H5P_DEFAULT),
+                 H5Dclose, file, what);
+  const std::string path = group_path + "/" + name;
+  write_text_attribute(dataset.get(), "units", units, file, path);
+  write_text_attribute(
+      dataset.get(), "description",
+      "row " + std::to_string(row) + " of " + source + " (a view: no data of its own)", file, path);
+}
+
 // /particles: the snapshot times, then per damper its particles and container (OUT.xdmf indexes
 // them for ParaView, io/xdmf.hpp).
 void write_particles(hid_t parent, const ParticleSnapshots& s, const std::string& file) {
@@ -227,6 +255,23 @@ void write_particles(hid_t parent, const ParticleSnapshots& s, const std::string
     array("container_position", d.container_position, {steps, 3}, "m", "container centre");
     array("container_axes", d.container_axes, {steps, 3, 3}, "-",
           "rows: the container's x, y and z axes in the world frame");
+    // For ParaView's Xdmf3 readers, which read no XDMF hyperslab and want a vertex per point:
+    // each snapshot's arrays as views (step/T/position ...) and the vertices 0 .. N-1.
+    std::vector<std::int32_t> vertex(d.radius.size());
+    for (std::size_t i = 0; i < vertex.size(); ++i) vertex[i] = static_cast<std::int32_t>(i);
+    write_array(dg.id(), path, "vertex", H5T_STD_I32LE, H5T_NATIVE_INT32, vertex.data(), {n}, file,
+                "1", "0 .. N-1: each particle a vertex (OUT.xdmf's topology)");
+    GroupWriter views(dg.id(), path + "/step", file);
+    for (hsize_t t = 0; t < steps; ++t) {
+      const std::string at = path + "/step/" + std::to_string(t);
+      GroupWriter step(views.id(), at, file);
+      for (const auto& [name, units] :
+           {std::pair{"position", "m"}, std::pair{"velocity", "m/s"}, std::pair{"spin", "rad/s"}})
+        write_row_view(step.id(), at, name, path + "/" + name, H5T_IEEE_F64LE, {steps, n, 3}, t,
+                       file, units);
+      write_row_view(step.id(), at, "contacts", path + "/contacts", H5T_STD_I32LE, {steps, n}, t,
+                     file, "1");
+    }
   }
 }
 

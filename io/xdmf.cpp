@@ -27,27 +27,6 @@ Wireframe wireframe(const DamperSnapshots& d) {
   return w;
 }
 
-// An HDF5 array's slice [t] (of shape `tail`), as an XDMF hyperslab.
-void slab(std::ostringstream& x, const std::string& source, std::size_t t, std::size_t steps,
-          const std::vector<std::size_t>& tail,
-          const char* type = "NumberType=\"Float\" Precision=\"8\"") {
-  const std::size_t rank = tail.size() + 1;
-  std::string dims, full = std::to_string(steps), count = "1", zeros = "0", ones = "1";
-  for (std::size_t n : tail) {
-    dims += (dims.empty() ? "" : " ") + std::to_string(n);
-    full += " " + std::to_string(n);
-    count += " " + std::to_string(n);
-    zeros += " 0";
-    ones += " 1";
-  }
-  x << "<DataItem ItemType=\"HyperSlab\" Dimensions=\"" << dims << "\" Type=\"HyperSlab\" " << type
-    << ">"
-    << "<DataItem Dimensions=\"3 " << rank << "\" Format=\"XML\">" << t << zeros.substr(1) << " "
-    << ones << " " << count << "</DataItem>"
-    << "<DataItem Dimensions=\"" << full << "\" " << type << " Format=\"HDF\">" << source
-    << "</DataItem></DataItem>\n";
-}
-
 }  // namespace
 
 std::string xdmf_path(const std::string& h5_path) {
@@ -58,45 +37,48 @@ std::string xdmf_path(const std::string& h5_path) {
 
 void write_xdmf(const std::string& h5_path, const ParticleSnapshots& s) {
   const std::string file = std::filesystem::path(h5_path).filename().string();
-  const std::size_t steps = s.time.size();
+  std::vector<Wireframe> frames;
+  for (const DamperSnapshots& d : s.dampers) frames.push_back(wireframe(d));
+  // One temporal collection of one spatial collection a snapshot (every damper's particles and
+  // container), each array a whole HDF5 dataset (a snapshot's are views, /particles/damperK/
+  // step/T): the structure and the items that ParaView's XDMF reader and its Xdmf3 readers
+  // (OpenDataFile's choice) all read.
   std::ostringstream x;
   x.precision(17);
-  x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n<Domain>\n";
-  for (std::size_t k = 0; k < s.dampers.size(); ++k) {
-    const DamperSnapshots& d = s.dampers[k];
-    const std::size_t n = d.radius.size();
-    const std::string group = file + ":/particles/damper" + std::to_string(k) + "/";
-    x << "<Grid Name=\"damper" << k << " particles\" GridType=\"Collection\" "
-      << "CollectionType=\"Temporal\">\n";
-    for (std::size_t t = 0; t < steps; ++t) {
-      x << "<Grid Name=\"particles\" GridType=\"Uniform\"><Time Value=\"" << s.time[t] << "\"/>"
+  x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n<Domain>\n"
+    << "<Grid Name=\"snapshots\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  const char* real = "NumberType=\"Float\" Precision=\"8\" Format=\"HDF\"";
+  for (std::size_t t = 0; t < s.time.size(); ++t) {
+    x << "<Grid Name=\"snapshot " << t << "\" GridType=\"Collection\" "
+      << "CollectionType=\"Spatial\"><Time Value=\"" << s.time[t] << "\"/>\n";
+    for (std::size_t k = 0; k < s.dampers.size(); ++k) {
+      const DamperSnapshots& d = s.dampers[k];
+      const std::size_t n = d.radius.size();
+      const std::string group = file + ":/particles/damper" + std::to_string(k) + "/";
+      const std::string step = group + "step/" + std::to_string(t) + "/";
+      x << "<Grid Name=\"damper" << k << " particles\" GridType=\"Uniform\">"
         << "<Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n
-        << "\" NodesPerElement=\"1\"/>\n<Geometry GeometryType=\"XYZ\">";
-      slab(x, group + "position", t, steps, {n, 3});
-      x << "</Geometry>\n<Attribute Name=\"radius\" AttributeType=\"Scalar\" Center=\"Node\">"
-        << "<DataItem Dimensions=\"" << n << "\" NumberType=\"Float\" Precision=\"8\" "
-        << "Format=\"HDF\">" << group << "radius</DataItem></Attribute>\n";
-      for (const char* vector : {"velocity", "spin"}) {
-        x << "<Attribute Name=\"" << vector << "\" AttributeType=\"Vector\" Center=\"Node\">";
-        slab(x, group + vector, t, steps, {n, 3});
-        x << "</Attribute>\n";
-      }
-      if (!d.contacts.empty()) {
-        x << "<Attribute Name=\"contacts\" AttributeType=\"Scalar\" Center=\"Node\">";
-        slab(x, group + "contacts", t, steps, {n}, "NumberType=\"Int\" Precision=\"4\"");
-        x << "</Attribute>\n";
-      }
+        << "\" NodesPerElement=\"1\"><DataItem Dimensions=\"" << n
+        << "\" NumberType=\"Int\" Precision=\"4\" Format=\"HDF\">" << group
+        << "vertex</DataItem></Topology>\n<Geometry GeometryType=\"XYZ\"><DataItem Dimensions=\""
+        << n << " 3\" " << real << ">" << step << "position</DataItem></Geometry>\n"
+        << "<Attribute Name=\"radius\" AttributeType=\"Scalar\" Center=\"Node\"><DataItem "
+        << "Dimensions=\"" << n << "\" " << real << ">" << group
+        << "radius</DataItem></Attribute>\n";
+      for (const char* vector : {"velocity", "spin"})
+        x << "<Attribute Name=\"" << vector << "\" AttributeType=\"Vector\" Center=\"Node\">"
+          << "<DataItem Dimensions=\"" << n << " 3\" " << real << ">" << step << vector
+          << "</DataItem></Attribute>\n";
+      if (!d.contacts.empty())
+        x << "<Attribute Name=\"contacts\" AttributeType=\"Scalar\" Center=\"Node\">"
+          << "<DataItem Dimensions=\"" << n << "\" NumberType=\"Int\" Precision=\"4\" "
+          << "Format=\"HDF\">" << step << "contacts</DataItem></Attribute>\n";
       x << "</Grid>\n";
-    }
-    x << "</Grid>\n";
-    // The container: its wireframe moved to each snapshot's pose (inline, a few dozen points).
-    const Wireframe w = wireframe(d);
-    x << "<Grid Name=\"damper" << k << " container\" GridType=\"Collection\" "
-      << "CollectionType=\"Temporal\">\n";
-    for (std::size_t t = 0; t < steps; ++t) {
+      // The container: its wireframe moved to the snapshot's pose (inline, a few dozen points).
+      const Wireframe& w = frames[k];
       const double* c = &d.container_position.at(3 * t);
       const double* a = &d.container_axes.at(9 * t);
-      x << "<Grid Name=\"container\" GridType=\"Uniform\"><Time Value=\"" << s.time[t] << "\"/>"
+      x << "<Grid Name=\"damper" << k << " container\" GridType=\"Uniform\">"
         << "<Topology TopologyType=\"Polyline\" NumberOfElements=\"" << w.segments.size() / 2
         << "\" NodesPerElement=\"2\"><DataItem Dimensions=\"" << w.segments.size() / 2
         << " 2\" NumberType=\"Int\" Format=\"XML\">";
@@ -109,7 +91,7 @@ void write_xdmf(const std::string& h5_path, const ParticleSnapshots& s) {
     }
     x << "</Grid>\n";
   }
-  x << "</Domain>\n</Xdmf>\n";
+  x << "</Grid>\n</Domain>\n</Xdmf>\n";
   replace_file(xdmf_path(h5_path), x.str());
 }
 

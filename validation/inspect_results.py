@@ -45,8 +45,14 @@ def main():
         h5.visititems(lambda name, obj: datasets.append((name, obj))
                       if isinstance(obj, h5py.Dataset) else None)
         print("datasets")
+        views = 0  # a snapshot's arrays as views of the arrays (HDF5 virtual datasets), for ParaView
         for name, dataset in datasets:
-            print(f"  /{name}: shape {dataset.shape}, {dataset.dtype}")
+            if dataset.is_virtual:
+                views += 1
+            else:
+                print(f"  /{name}: shape {dataset.shape}, {dataset.dtype}")
+        if views:
+            print(f"  and {views} views of a snapshot's arrays (/particles/damperK/step/T/...)")
         complete = meta.get("complete")
 
     if args.file.endswith(".partial"):

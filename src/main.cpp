@@ -71,7 +71,8 @@ int main(int argc, char** argv) {
       ->check(kCount);
   sweep
       ->add_option("--threads", sweep_options.threads,
-                   "CPU threads per point (default: the cores shared among the jobs)")
+                   "CPU threads per point (default: the cores shared among the jobs; with "
+                   "--slurm, the deck's solver.threads or 1)")
       ->check(kThreads);
   sweep->add_option("--backend", backend, "cpu, cuda or auto (default: the deck's)");
   sweep->add_flag("--resume", sweep_options.resume,

@@ -16,6 +16,7 @@
 #include <functional>
 
 #include "tests/kernels/dem_fixtures.hpp"
+#include "tests/support/validation_row.hpp"
 
 namespace pdsim {
 namespace {
@@ -100,6 +101,7 @@ struct Resolution {
 
 TEST_CASE("linear law: restitution and contact time of binary and wall impacts") {
   const double mass = ball_mass(kRadius, kSteelDensity);
+  double worst_e = 0, worst_tc = 0;  // at 1000 steps a contact
   for (const Resolution res :
        {Resolution{100, 1e-2, 1e-2, 2e-2}, Resolution{1000, 1e-3, 1e-3, 2e-3}})
     for (bool wall : {false, true})
@@ -120,11 +122,20 @@ TEST_CASE("linear law: restitution and contact time of binary and wall impacts")
           CHECK(std::fabs(r.energy_balance) < res.energy_tolerance);
           // Each particle computes its half of the pair force: antisymmetric to the last bit.
           if (!wall) CHECK(r.momentum_error < 1e-13);
+          if (res.steps_per_contact == 1000) {
+            worst_e = std::max(worst_e, std::fabs(r.restitution - e));
+            worst_tc = std::max(worst_tc, std::fabs(r.contact_time / tc - 1));
+          }
         }
+  validation_bound("linear law, pair and wall impacts, e 0.3-0.9, 0.1-5 m/s: largest |e - e_set|",
+                   "the law's restitution (closed form)", 1e-3, worst_e, "");
+  validation_bound("linear law, pair and wall impacts: largest |t_c / t_c,exact - 1|",
+                   "the damped oscillator's contact time (closed form)", 1e-3, worst_tc, "");
 }
 
 TEST_CASE("hertz law with Tsuji damping: velocity-independent restitution, Hertz contact time") {
   const double mass = ball_mass(kRadius, kSteelDensity);
+  double worst_e = 0, worst_tc = 0;  // at 1000 steps a contact
   for (const Resolution res :
        {Resolution{100, 5e-3, 5e-4, 2e-2}, Resolution{1000, 5e-4, 5e-4, 2e-3}})
     for (bool wall : {false, true})
@@ -146,7 +157,16 @@ TEST_CASE("hertz law with Tsuji damping: velocity-independent restitution, Hertz
           if (!wall) CHECK(r.momentum_error < 1e-13);
           // Johnson's time is for the undamped contact (2.868 is rounded to 4 digits).
           if (e == 1.0) CHECK(std::fabs(r.contact_time / tc - 1) < res.contact_time_tolerance);
+          if (res.steps_per_contact == 1000) {
+            worst_e = std::max(worst_e, std::fabs(r.restitution - e));
+            if (e == 1.0) worst_tc = std::max(worst_tc, std::fabs(r.contact_time / tc - 1));
+          }
         }
+  validation_bound(
+      "Hertz-Tsuji law, pair and wall impacts, e 0.3-1, 0.1-5 m/s: largest |e - e_set|",
+      "Tsuji's velocity-independent restitution", 5e-4, worst_e, "");
+  validation_bound("Hertz law, elastic impacts: largest |t_c / t_c,Hertz - 1|",
+                   "Hertz contact time (Johnson 1985)", 5e-4, worst_tc, "");
 }
 
 TEST_CASE("linear law: the normal tally is the dashpot's work over the discrete trajectory") {

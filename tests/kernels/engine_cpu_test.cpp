@@ -13,6 +13,7 @@
 #include <variant>
 
 #include "tests/kernels/dem_fixtures.hpp"
+#include "tests/support/validation_row.hpp"
 
 namespace pdsim {
 namespace {
@@ -193,6 +194,10 @@ TEST_CASE("static pile: at rest for 10 s simulated and the walls carry its weigh
   // Kinetic energy (translation and rotation) below the whole pile moving at the speed bound.
   CHECK(max_kinetic < 0.5 * (pile.weight / kGravity) * speed_bound * speed_bound);
   // Static equilibrium: the force on the container is the pile's weight, pointing down.
+  validation_row("static pile of 200 balls held 10 s: mean vertical wall force", "its weight",
+                 pile.weight, -mean_force.z, 1e-3, "N");
+  validation_bound("static pile of 200 balls held 10 s: fastest ball",
+                   "at rest (the bound a pile at rest stays under)", speed_bound, max_speed, "m/s");
   for (const Vec3 force : {last, mean_force}) {
     CHECK(force.z / pile.weight == doctest::Approx(-1).epsilon(1e-3));
     CHECK(std::fabs(force.x) < 1e-3 * pile.weight);

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <initializer_list>
@@ -19,6 +20,7 @@
 #include <utility>
 
 #include "io/excitation.hpp"
+#include "io/stl_mesh.hpp"
 
 namespace pdsim {
 namespace {
@@ -123,6 +125,7 @@ class Table {
     return name_.empty() ? std::string(k) : name_ + "." + std::string(k);
   }
   bool has(std::string_view k) const { return table_.contains(k); }
+  const SourcePos& pos() const { return pos_; }
   const toml::node* node(std::string_view k) const { return table_.get(k); }
 
   [[noreturn]] void fail(std::string_view k, const std::string& what) const {
@@ -421,10 +424,33 @@ DamperSpec read_damper(const Table& t, const StructureSpec& structure) {
   t.allow_only({"container", "particles", "attach"});
   const std::string why = "in every [[damper]]";
 
-  const Table c = t.need_sub(
-      "container",
-      "a table { shape = \"box\", size } or { shape = \"cylinder\", radius, height[, axis] }", why);
-  if (c.need_choice("shape", {"box", "cylinder"}, "for a container") == 0) {
+  const Table c = t.need_sub("container",
+                             "a table { shape = \"box\", size }, { shape = \"cylinder\", radius, "
+                             "height[, axis] } or { shape = \"mesh\", file[, scale, curvature] }",
+                             why);
+  const std::size_t shape = c.need_choice("shape", {"box", "cylinder", "mesh"}, "for a container");
+  if (shape == 2) {
+    c.allow_only({"shape", "file", "scale", "curvature"}, " for shape = \"mesh\"");
+    d.container.shape = WallShape::mesh;
+    const std::string mesh = "for shape = \"mesh\"";
+    if (!c.has("file")) c.missing("file", "an STL file (ASCII or binary)", mesh);
+    std::string file = *c.text("file");
+    if (file.empty()) c.fail("file", "expected an STL file name, got \"\"");
+    const double scale =
+        c.real("scale", "a positive number (metres per file unit)", positive).value_or(1.0);
+    const double curvature =
+        c.real("curvature", "an angle in degrees, above 0 and below 90", [](double v) {
+           return v > 0 && v < 90;
+         }).value_or(kDefaultCurvature);
+    // A relative file is the deck's neighbour.
+    if (std::filesystem::path(file).is_relative())
+      file = (std::filesystem::path(c.pos().file).parent_path() / file).lexically_normal().string();
+    try {
+      d.container.mesh = load_mesh(file, scale, curvature);
+    } catch (const InputError& e) {
+      c.fail("file", e.what());
+    }
+  } else if (shape == 0) {
     c.allow_only({"shape", "size"}, " for shape = \"box\"");
     d.container.shape = WallShape::box;
     const std::string expected = "3 positive edge lengths [a, b, c] (m)";

@@ -240,6 +240,14 @@ void write_particles(hid_t parent, const ParticleSnapshots& s, const std::string
               "box: edge lengths; cylinder: diameter, diameter, height");
     dg.column("radius", d.radius, "m", "particle radii");
     const auto n = static_cast<hsize_t>(d.radius.size());
+    const auto points = static_cast<hsize_t>(d.outline_points.size() / 3);
+    write_array(dg.id(), path, "container_outline_points", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE,
+                d.outline_points.data(), {points, 3}, file, "m",
+                "the container's outline, container frame: its corners (a mesh: its vertices)");
+    const auto segments = static_cast<hsize_t>(d.outline_segments.size() / 2);
+    write_array(dg.id(), path, "container_outline_segments", H5T_STD_I32LE, H5T_NATIVE_INT32,
+                d.outline_segments.data(), {segments, 2}, file, "1",
+                "the outline's edges (a mesh: where its surfaces meet), as pairs of point rows");
     auto array = [&](const char* name, const std::vector<double>& v, std::vector<hsize_t> dims,
                      const char* units, const char* what) {
       write_array(dg.id(), path, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, v.data(), dims, file,
@@ -659,6 +667,11 @@ Results read_file(const std::string& file) {
         read_column(damper.get(), path, key, H5T_NATIVE_DOUBLE, out, file, rank);
       };
       read("container_size", d.size, 1);
+      if (has_link(damper.get(), "container_outline_points", file)) {
+        read("container_outline_points", d.outline_points, 2);
+        read_column(damper.get(), path, "container_outline_segments", H5T_NATIVE_INT32,
+                    d.outline_segments, file, 2);
+      }
       read("radius", d.radius, 1);
       read("position", d.position, 3);
       read("velocity", d.velocity, 3);

@@ -284,14 +284,19 @@ void period_columns(T& t, F&& f) {
 // Particle snapshots (output.particles): every `every` seconds, each damper's particles and its
 // container, in the world frame. Arrays are flat, row-major: position[(t * N + i) * 3 + c].
 struct DamperSnapshots {
-  std::string shape;                       // "box" or "cylinder"
-  std::vector<double> size;                // m: box edge lengths; cylinder diameter, -, height
+  std::string shape;                       // "box", "cylinder" or "mesh"
+  std::vector<double> size;                // m: box edge lengths; cylinder diameter, -, height;
+                                           // mesh: twice its extents from the origin
   std::vector<double> radius;              // m, per particle (N)
   std::vector<double> position, velocity;  // m, m/s (T x N x 3)
   std::vector<double> spin;                // rad/s (T x N x 3)
   std::vector<std::int32_t> contacts;      // partners and walls each particle touches (T x N)
   std::vector<double> container_position;  // m, centre (T x 3)
   std::vector<double> container_axes;      // rows: the container's x, y, z axes (T x 3 x 3)
+  // The container's outline in its own frame (a mesh's edges where its surfaces meet): points
+  // (P x 3, m) and the segments joining them (S x 2 point indices); empty in older files.
+  std::vector<double> outline_points;
+  std::vector<std::int32_t> outline_segments;
 };
 struct ParticleSnapshots {
   std::vector<double> time;  // s (T)

@@ -9,16 +9,13 @@
 #include <string>
 #include <vector>
 
-#include "kernels/vec3.hpp"
+#include "kernels/shape_mesh.hpp"
 
 namespace pdsim {
 
-struct TriangleMesh {
-  std::vector<Vec3> vertices;                 // m (the file's units times the scale)
-  std::vector<std::array<int, 3>> triangles;  // counter-clockwise seen from outside
-  double volume = 0;                          // m^3
-  Vec3 low, high;                             // bounding box, m
-};
+// Surfaces of a mesh container meet at edges that bend by at least this much, degrees
+// (`curvature` in a deck): the triangles of a flat face, split any way, are one surface.
+constexpr double kDefaultCurvature = 1.0;
 
 // Reads `path` (coordinates times `scale`, to metres). Throws InputError naming the file and
 // what is wrong: unreadable or empty, a coordinate that is not a number, an edge of one
@@ -27,7 +24,13 @@ struct TriangleMesh {
 // triangles, triangles that cross each other, or no volume.
 TriangleMesh read_stl(const std::string& path, double scale);
 
-// Whether `p` lies strictly inside the closed mesh; points on its surface count as outside.
+// A mesh container from `path`: read_stl(), its surfaces (mesh_surface()), the widest sphere
+// that fits, and the fill's inside test. Throws InputError as read_stl() does.
+std::shared_ptr<const MeshSurface> load_mesh(const std::string& path, double scale,
+                                             double curvature_degrees);
+
+// Whether `p` lies strictly inside the closed mesh (points on its surface count as outside),
+// and how far it is from the surface.
 class MeshInside {
  public:
   explicit MeshInside(const TriangleMesh& mesh);
@@ -35,6 +38,7 @@ class MeshInside {
   MeshInside(const MeshInside&) = delete;
   MeshInside& operator=(const MeshInside&) = delete;
   bool operator()(const Vec3& p) const;
+  double distance(const Vec3& p) const;  // to the surface, m
 
  private:
   struct Tree;

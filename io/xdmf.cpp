@@ -18,10 +18,16 @@ struct Wireframe {
 };
 
 Wireframe wireframe(const DamperSnapshots& d) {
-  ContainerGeometry g;  // from the edge lengths the file keeps (a cylinder: its diameter)
+  Wireframe w;
+  if (!d.outline_points.empty()) {  // as the run drew it
+    for (std::size_t k = 0; k + 2 < d.outline_points.size(); k += 3)
+      w.points.push_back({d.outline_points[k], d.outline_points[k + 1], d.outline_points[k + 2]});
+    w.segments.assign(d.outline_segments.begin(), d.outline_segments.end());
+    return w;
+  }
+  ContainerGeometry g;  // older files: from the edge lengths (a cylinder: its diameter)
   g.half_size = {0.5 * d.size.at(0), 0.5 * d.size.at(1), 0.5 * d.size.at(2)};
   g.radius = g.half_size.x;
-  Wireframe w;
   with_shape(shape_named(d.shape),
              [&](auto shape) { decltype(shape)::wireframe(g, w.points, w.segments); });
   return w;

@@ -43,9 +43,28 @@ inline const char* backend_name(Backend b) {
   return names[static_cast<int>(b)];
 }
 
+// A mesh container's triangles and their bins, as the step kernels read them (host or device
+// arrays, set by the engine; kernels/shape_mesh.hpp). All in the container frame, m.
+struct MeshView {
+  const double* triangle = nullptr;   // kTriangleDoubles each: a, b - a, c - a, inward normal
+  const std::int32_t* key = nullptr;  // kTriangleInts each (kernels/shape_mesh.hpp)
+  std::int32_t regions = 0;           // keys below this name a surface, not an edge or corner
+  std::int32_t vertex_base = 0;       // keys from this on name a vertex: key - vertex_base
+  Vec3 origin;                        // the bins' low corner
+  double inv_cell = 0;                // 1 / bin width
+  std::int32_t nx = 0, ny = 0, nz = 0;
+  const std::int32_t* bin_start = nullptr;  // nx ny nz + 1: bin b lists bin_triangle[start[b]..)
+  const std::int32_t* bin_triangle = nullptr;
+};
+
+struct MeshSurface;  // the host's mesh (kernels/shape_mesh.hpp)
+
 struct ContainerGeometry {
-  Vec3 half_size;     // box: half edge lengths; cylinder: (radius, radius, half height)
+  Vec3 half_size;     // box: half edge lengths; cylinder: (radius, radius, half height); mesh:
+                      // the largest extent from the origin along each axis
   double radius = 0;  // cylinder radius
+  MeshView mesh;      // mesh: its triangles in bins (set by the engine)
+  const MeshSurface* surface = nullptr;  // mesh, host only: the surface the bins are made from
 };
 
 // The container's axes in the world when its attachment is at rest: the identity, or a
@@ -89,7 +108,7 @@ inline ContainerKinematics translating(Vec3 position, Vec3 velocity) {
   return k;
 }
 
-enum StepFlag : int { kNonFinite = 1, kEscaped = 2, kNeighbourOverflow = 4 };
+enum StepFlag : int { kNonFinite = 1, kEscaped = 2, kNeighbourOverflow = 4, kWallOverflow = 8 };
 
 // Particle state, one array per component (structure of arrays).
 struct ParticleArrays {
@@ -98,7 +117,9 @@ struct ParticleArrays {
   double *wx, *wy, *wz;
 };
 
-constexpr int kWallSlots = 6;  // box: -x,+x,-y,+y,-z,+z; cylinder: 0 side, 4 -z, 5 +z
+// Wall contacts a particle may hold history for: box -x,+x,-y,+y,-z,+z; cylinder 0 side, 4 -z,
+// 5 +z; mesh: any six surfaces, edges or corners, each slot naming its own (HistoryArrays).
+constexpr int kWallSlots = 6;
 constexpr int kSlotGroup = 2;  // neighbour lists are padded to multiples of this (slot tests)
 
 // A reverse-list entry names a forward slot by its owner and its place k in the owner's list

@@ -47,10 +47,10 @@ struct EngineConfig {
 
 using StepTotals = ParticleContribution;
 
-// A particle touches at most one wall per container axis (kMaxWallContacts) only if it is
+// A particle touches at most one wall per container axis of a box or cylinder only if it is
 // narrower than the container (engine_sizes() checks; decks are checked with a clearer message
-// before that).
-constexpr int kMaxWallContacts = 3;
+// before that), and at most kWallSlots features of a mesh (more stop the run).
+constexpr int kMaxWallContacts = kWallSlots;
 inline double smallest_inner_size(WallShape shape, const ContainerGeometry& g) {
   return with_shape(shape, [&](auto s) { return decltype(s)::smallest_inner_size(g); });
 }

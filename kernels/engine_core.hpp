@@ -70,6 +70,7 @@ struct EngineCheckpoint {
   std::vector<double> radius;
   std::vector<double> history, wall_history;  // 3 per slot; kWallSlots x 3 per particle
   std::vector<std::uint8_t> wall_mask;
+  std::vector<std::int32_t> wall_key;  // kWallSlots per particle (history only)
   std::vector<std::uint64_t> neighbour_mask;
   std::vector<std::int32_t> neighbours, partner_id, neighbour_count, reverse, reverse_count;
   // The cell grid and the rebuild policy.
@@ -109,6 +110,7 @@ void for_each_array(Checkpoint& c, F&& f) {
   f(CheckpointField{"history", E::slot, 3, true}, c.history);
   f(CheckpointField{"wall_history", E::particle, 3 * kWallSlots, true}, c.wall_history);
   f(CheckpointField{"wall_mask", E::particle, 1, false}, c.wall_mask);
+  f(CheckpointField{"wall_key", E::particle, kWallSlots, true}, c.wall_key);
   f(CheckpointField{"neighbour_mask", E::particle, 1, false}, c.neighbour_mask);
   f(CheckpointField{"neighbours", E::slot, 1, false}, c.neighbours);
   f(CheckpointField{"partner_id", E::slot, 1, false}, c.partner_id);
@@ -137,14 +139,15 @@ inline std::vector<std::string> checkpoint_arrays() {
 // Contact history as a checkpoint stores it: `slots` slots of 3 values per particle, only those
 // whose bit is set in the particle's mask. The others hold stale values that are never read and
 // would make two equal states save differently. Scenes without history have none (empty).
-template <class Mask>
-std::vector<double> live_history(std::vector<double> history, const std::vector<Mask>& mask,
-                                 int slots) {
+template <class T, class Mask>
+std::vector<T> live_history(std::vector<T> history, const std::vector<Mask>& mask, int slots,
+                            int values = 3) {
   if (history.empty()) return history;
   for (std::size_t i = 0; i < mask.size(); ++i)
     for (int k = 0; k < slots; ++k)
       if (!(static_cast<std::uint64_t>(mask[i]) >> k & 1u))
-        for (int c = 0; c < 3; ++c) history[3 * (i * static_cast<std::size_t>(slots) + k) + c] = 0;
+        for (int c = 0; c < values; ++c)
+          history[values * (i * static_cast<std::size_t>(slots) + k) + c] = 0;
   return history;
 }
 
@@ -167,6 +170,7 @@ inline std::vector<std::int32_t> packed_reverse(const std::vector<std::int32_t>&
 inline StateArrays to_arrays(EngineCheckpoint c) {
   c.history = live_history(std::move(c.history), c.neighbour_mask, c.max_neighbours);
   c.wall_history = live_history(std::move(c.wall_history), c.wall_mask, kWallSlots);
+  c.wall_key = live_history(std::move(c.wall_key), c.wall_mask, kWallSlots, 1);
   c.reverse = flat_reverse(c.reverse, c.max_neighbours);
   StateArrays out;
   for_each_array(c,
@@ -296,6 +300,7 @@ class EngineCore : public DemEngine {
     Array<double> neighbour, wall;
     Array<std::uint64_t> neighbour_mask;
     Array<std::uint8_t> wall_mask;
+    Array<std::int32_t> wall_key;  // kWallSlots per particle, with history
   };
 
   EngineCore(const EngineConfig& c, VariantInfo variant)
@@ -304,6 +309,25 @@ class EngineCore : public DemEngine {
         sizes_(engine_sizes(c)),
         count_(sizes_.count),
         max_neighbours_(sizes_.max_neighbours) {}
+
+  // A mesh container's triangles and bins for these particles, in the backend's arrays:
+  // place(host vector, array) copies one there. Nothing for the other shapes.
+  template <class Place>
+  void place_mesh(Place&& place) {
+    if (config_.shape != WallShape::mesh) return;
+    const MeshSurface& s = *config_.geometry.surface;
+    const MeshBins bins = mesh_bins(s, sizes_.r_max);
+    place(s.triangle, mesh_triangle_);
+    place(s.key, mesh_key_);
+    place(bins.start, mesh_bin_start_);
+    place(bins.triangle, mesh_bin_triangle_);
+    MeshView& v = scene_args_.geometry.mesh;
+    v = mesh_view(s, bins);
+    v.triangle = mesh_triangle_.data();
+    v.key = mesh_key_.data();
+    v.bin_start = mesh_bin_start_.data();
+    v.bin_triangle = mesh_bin_triangle_.data();
+  }
 
   // The particles' inverse masses and inertias, from their radii (one expression for both
   // backends and for restored runs, so that they agree bitwise).
@@ -429,6 +453,8 @@ class EngineCore : public DemEngine {
   Array<std::int32_t> id_, neighbours_, partner_id_, neighbour_count_, reverse_, reverse_count_,
       slot_start_, reverse_start_;
   Array<std::uint32_t> incoming_;
+  Array<double> mesh_triangle_;  // a mesh container's (place_mesh())
+  Array<std::int32_t> mesh_key_, mesh_bin_start_, mesh_bin_triangle_;
 };
 
 }  // namespace pdsim

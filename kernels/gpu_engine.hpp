@@ -67,6 +67,8 @@ struct Gather {
   double* wall_history_out;
   const std::uint8_t* wall_mask_in;
   std::uint8_t* wall_mask_out;
+  const std::int32_t* wall_key_in;
+  std::int32_t* wall_key_out;
   PDSIM_HD void operator()(int i) const {
     const int from = order[i];
     for (int c = 0; c < kGatheredColumns; ++c) column_out[c][i] = column_in[c][from];
@@ -75,6 +77,8 @@ struct Gather {
       for (int s = 0; s < 3 * kWallSlots; ++s)
         wall_history_out[3 * kWallSlots * i + s] = wall_history_in[3 * kWallSlots * from + s];
       wall_mask_out[i] = wall_mask_in[from];
+      for (int s = 0; s < kWallSlots; ++s)
+        wall_key_out[kWallSlots * i + s] = wall_key_in[kWallSlots * from + s];
     }
   }
 };
@@ -175,6 +179,11 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     id_.upload(id, exec_, "id");
     size_neighbour_arrays();
     set_particles(c.particles);
+    this->place_mesh([&](const auto& host, auto& array) {
+      array.resize(host.size());
+      array.upload(host, exec_, "mesh");
+      exec_.synchronize();  // the upload reads host memory that is about to go away
+    });
   }
 
   const StepTotals& compute(const ContainerKinematics& container, double dt) override {
@@ -245,6 +254,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     c.history = h.neighbour.download(exec_);
     c.wall_history = h.wall.download(exec_);
     c.wall_mask = h.wall_mask.download(exec_);
+    c.wall_key = h.wall_key.download(exec_);
     c.neighbour_mask = h.neighbour_mask.download(exec_);
     c.neighbours = neighbours_.download(exec_);
     c.partner_id = partner_id_.download(exec_);
@@ -269,6 +279,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     h.neighbour.upload(c.history, exec_, "history");
     h.wall.upload(c.wall_history, exec_, "wall_history");
     h.wall_mask.upload(c.wall_mask, exec_, "wall_mask");
+    h.wall_key.upload(c.wall_key, exec_, "wall_key");
     h.neighbour_mask.upload(c.neighbour_mask, exec_, "neighbour_mask");
     neighbours_.upload(c.neighbours, exec_, "neighbours");
     partner_id_.upload(c.partner_id, exec_, "partner_id");
@@ -284,8 +295,8 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     for (const auto& s : state_)
       for (const auto* a : s.all) bytes += a->bytes();
     for (const auto& h : history_)
-      bytes +=
-          h.neighbour.bytes() + h.wall.bytes() + h.neighbour_mask.bytes() + h.wall_mask.bytes();
+      bytes += h.neighbour.bytes() + h.wall.bytes() + h.neighbour_mask.bytes() +
+               h.wall_mask.bytes() + h.wall_key.bytes();
     for (const auto* a :
          {&radius_, &inv_mass_, &inv_inertia_, &radius_next_, &inv_mass_next_, &inv_inertia_next_})
       bytes += a->bytes();
@@ -315,6 +326,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
       h.neighbour_mask.resize(n);
       h.wall.resize(variant_.history ? 3 * kWallSlots * n : 0);
       h.wall_mask.resize(n);
+      h.wall_key.resize(variant_.history ? kWallSlots * n : 0);
     }
     for (auto* a : {&neighbours_, &partner_id_, &partner_id_old_, &reverse_}) a->resize(slots);
     neighbour_count_.resize(n);
@@ -339,6 +351,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
       h.neighbour_mask.fill_bytes(0, exec_);
       h.wall.fill_bytes(0, exec_);
       h.wall_mask.fill_bytes(0, exec_);
+      h.wall_key.fill_bytes(0, exec_);
     }
     neighbours_.fill_bytes(0xff, exec_);
     partner_id_.fill_bytes(0xff, exec_);
@@ -390,6 +403,8 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
       g.wall_history_out = hnew.wall.data();
       g.wall_mask_in = hin.wall_mask.data();
       g.wall_mask_out = hnew.wall_mask.data();
+      g.wall_key_in = hin.wall_key.data();
+      g.wall_key_out = hnew.wall_key.data();
     }
     exec_.each(count_, g, "gather");
     radius_.swap(radius_next_);

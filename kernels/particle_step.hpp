@@ -250,28 +250,77 @@ PDSIM_HD void container_offset(Vec3 x, const ParticleStepArgs& a, Vec3& offset, 
              dot(offset, a.container.axis_z)};
 }
 
-// The walls that particle i (near them: it passed the bounding test) touches: f(slot, gap,
-// normal) for each in slot order, `normal` in the world frame, pointing into the container.
-// Flags a centre further than one radius outside the container.
+// The walls that particle i (near them: it passed the bounding test) touches: f(slot, had,
+// gap, normal) for each, `slot` its history's (held before this step when `had`), `normal` in
+// the world frame, pointing into the container. Marks the slots in the history's output mask.
+// Flags a centre further than one radius outside the container, and a particle touching more
+// features of a mesh than it has slots.
 template <class V, class F>
 PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribution& sum, F&& f) {
+  using Shape = ShapeOf<V::kShape>;
+  constexpr bool history = V::Tangential::kHistory;
   const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
   Vec3 offset, local;
   container_offset<V>({a.in.x[i], a.in.y[i], a.in.z[i]}, a, offset, local);
   const ContainerKinematics& box = a.container;
-  auto wall = [&](int slot, double gap, Vec3 local_normal) {
-    if (gap >= radius) return;
-    Vec3 normal = local_normal;
-    if constexpr (V::kRotating)
-      normal =
-          local_normal.x * box.axis_x + local_normal.y * box.axis_y + local_normal.z * box.axis_z;
-    f(slot, gap, normal);
+  auto world = [&](Vec3 n) {
+    if constexpr (V::kRotating) return n.x * box.axis_x + n.y * box.axis_y + n.z * box.axis_z;
+    return n;
   };
   // A centre further than one radius outside the container stops the run.
   auto escaped = [&](double beyond) {
     if (beyond > radius) sum.flags |= kEscaped;
   };
-  ShapeOf<V::kShape>::walls(local, radius, a.geometry, wall, escaped);
+  std::uint8_t had = 0, touched = 0;
+  if constexpr (history) had = a.history.wall_mask_in[i];
+  if constexpr (!Shape::kKeyed) {
+    auto wall = [&](int slot, double gap, Vec3 local_normal) {
+      if (gap >= radius) return;
+      touched = static_cast<std::uint8_t>(touched | (1u << slot));
+      f(slot, (had >> slot & 1u) != 0, gap, world(local_normal));
+    };
+    Shape::walls(local, radius, a.geometry, wall, escaped);
+  } else {
+    // Features by key, each given the slot that held its key before (its history) or a free one.
+    int key[kWallSlots], slot[kWallSlots];
+    double gap[kWallSlots];
+    Vec3 normal[kWallSlots];
+    int n = 0;
+    bool held = Shape::walls(
+        local, radius, a.geometry,
+        [&](int k, double g, Vec3 local_normal) {
+          if (n == kWallSlots) {
+            held = false;
+            return;
+          }
+          key[n] = k, gap[n] = g, normal[n] = local_normal, slot[n] = -1;
+          ++n;
+        },
+        escaped);
+    if (!held) sum.flags |= kWallOverflow;
+    unsigned used = 0;
+    if constexpr (history) {
+      const std::int32_t* before = a.history.wall_key_in + i * kWallSlots;
+      for (int c = 0; c < n; ++c)
+        for (int s = 0; s < kWallSlots; ++s)
+          if ((had >> s & 1u) && before[s] == key[c]) {
+            slot[c] = s, used |= 1u << s;
+            break;
+          }
+    }
+    for (int c = 0; c < n; ++c) {
+      const bool kept = slot[c] >= 0;
+      if (!kept) {
+        int s = 0;
+        while (used >> s & 1u) ++s;
+        slot[c] = s, used |= 1u << s;
+      }
+      if constexpr (history) a.history.wall_key_out[i * kWallSlots + slot[c]] = key[c];
+      f(slot[c], kept, gap[c], world(normal[c]));
+    }
+    touched = static_cast<std::uint8_t>(used);
+  }
+  if constexpr (history) a.history.wall_mask_out[i] = touched;
 }
 
 // The contact of particle i with a wall at `gap` along `normal`, with tangential history xi
@@ -314,22 +363,18 @@ PDSIM_HD void add_wall_reaction(int i, double gap, Vec3 normal, Vec3 force,
 template <class V>
 PDSIM_HD Load wall_contacts(int i, const ParticleStepArgs& a, ParticleContribution& sum) {
   Load load;
-  std::uint8_t had = 0, touched = 0;
-  if constexpr (V::Tangential::kHistory) had = a.history.wall_mask_in[i];
-  touching_walls<V>(i, a, sum, [&](int slot, double gap, Vec3 normal) {
+  touching_walls<V>(i, a, sum, [&](int slot, bool had, double gap, Vec3 normal) {
     Vec3 xi{};
     if constexpr (V::Tangential::kHistory)
-      xi = slot_history(a.history.wall_in, i * kWallSlots + slot, had >> slot & 1u);
+      xi = slot_history(a.history.wall_in, i * kWallSlots + slot, had);
     Dissipation dissipated;
     const Load l = wall_contact<V>(i, gap, normal, xi, a, dissipated);
     add_tallies(sum.tally, dissipated);
     if constexpr (V::Tangential::kHistory) store3(a.history.wall_out, i * kWallSlots + slot, xi);
-    touched = static_cast<std::uint8_t>(touched | (1u << slot));
     load.force += l.force;
     load.torque += l.torque;
     add_wall_reaction<V>(i, gap, normal, l.force, a, sum);
   });
-  if constexpr (V::Tangential::kHistory) a.history.wall_mask_out[i] = touched;
   return load;
 }
 

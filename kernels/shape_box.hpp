@@ -16,6 +16,7 @@ namespace pdsim {
 
 struct BoxShape {
   static constexpr const char* name = "box";
+  static constexpr bool kKeyed = false;  // walls() names fixed slots
 
   // Its geometry from the deck's words (ContainerSpec, kernels/shapes.hpp): `size`, m.
   template <class Spec>

@@ -14,6 +14,7 @@ namespace pdsim {
 
 struct CylinderShape {
   static constexpr const char* name = "cylinder";
+  static constexpr bool kKeyed = false;    // walls() names fixed slots
   static constexpr int kRimSegments = 32;  // the rims drawn as polygons
 
   // `radius` and `height`, m.

@@ -4,25 +4,28 @@
 // fields in ContainerSpec, and the reading of those keys in io/deck.cpp.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <tuple>
 
 #include "kernels/shape_box.hpp"
 #include "kernels/shape_cylinder.hpp"
+#include "kernels/shape_mesh.hpp"
 #include "kernels/type_list.hpp"
 
 namespace pdsim {
 
-enum class WallShape : int { box, cylinder };
-using Shapes = std::tuple<BoxShape, CylinderShape>;  // in the order of WallShape
+enum class WallShape : int { box, cylinder, mesh };
+using Shapes = std::tuple<BoxShape, CylinderShape, MeshShape>;  // in the order of WallShape
 
 // A container as the deck gives it, SI units.
 struct ContainerSpec {
   WallShape shape = WallShape::box;
-  Vec3 size;           // box: full edge lengths, m
-  double radius = 0;   // cylinder, m
-  double height = 0;   // cylinder, m
-  Vec3 axis{0, 0, 1};  // cylinder: its axis in the world at rest (unit)
+  Vec3 size;                                // box: full edge lengths, m
+  double radius = 0;                        // cylinder, m
+  double height = 0;                        // cylinder, m
+  Vec3 axis{0, 0, 1};                       // cylinder: its axis in the world at rest (unit)
+  std::shared_ptr<const MeshSurface> mesh;  // mesh: the surface read from its file
 };
 
 template <WallShape S>

@@ -13,7 +13,7 @@ namespace pdsim {
 
 // The checkpoint format this pdsim writes and reads. Bump it whenever an array's name, type or
 // meaning changes: a checkpoint (or bed file) of another format is refused, not misread.
-constexpr int kCheckpointFormat = 4;
+constexpr int kCheckpointFormat = 5;  // 5: wall_key
 
 using StateArray = std::variant<std::vector<double>, std::vector<std::int32_t>,
                                 std::vector<std::uint64_t>, std::vector<std::uint8_t>>;

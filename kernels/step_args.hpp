@@ -28,7 +28,7 @@ struct Variant {
 // The contact laws read fewer of a variant's choices than a whole step does: a pair's not the
 // container's shape, rotation or gravity, a wall's not its shape or gravity. Code instantiated
 // on these is compiled once for every variant that shares it (24 pair and 48 wall variants
-// instead of 192 each): the same code, the same results.
+// instead of 288 each): the same code, the same results.
 template <class V>
 using PairLaws = Variant<typename V::Normal, typename V::Tangential, V::kRolling, false,
                          V::kPolydisperse, WallShape::box, false>;
@@ -48,6 +48,10 @@ struct HistoryArrays {
   double* wall_out;
   const std::uint8_t* wall_mask_in;
   std::uint8_t* wall_mask_out;
+  // count x kWallSlots: the feature each slot holds the history of, where shapes name walls by
+  // key (the mesh); the others' slots are their walls.
+  const std::int32_t* wall_key_in;
+  std::int32_t* wall_key_out;
 };
 
 // The history pointers of a step: read `in`, write `out` (either backend's buffers).
@@ -55,7 +59,8 @@ template <class In, class Out>
 HistoryArrays history_view(const In& in, Out& out) {
   return {in.neighbour.data(),       out.neighbour.data(), in.neighbour_mask.data(),
           out.neighbour_mask.data(), in.wall.data(),       out.wall.data(),
-          in.wall_mask.data(),       out.wall_mask.data()};
+          in.wall_mask.data(),       out.wall_mask.data(), in.wall_key.data(),
+          out.wall_key.data()};
 }
 
 // Mass properties of a solid sphere (I = 2/5 m r^2): one expression for both backends and for

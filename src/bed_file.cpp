@@ -27,6 +27,10 @@ std::string damper_text(const DamperScene& d, bool fill) {
   };
   auto mix3 = [&](Vec3 v) { mix(v.x), mix(v.y), mix(v.z); };
   mix3(e.geometry.half_size), mix(e.geometry.radius);
+  if (e.geometry.surface) {  // a mesh: its triangles and how they join
+    for (double v : e.geometry.surface->triangle) mix(v);
+    mix(e.geometry.surface->curvature);
+  }
   mix3(e.orientation.x), mix3(e.orientation.y), mix3(e.orientation.z);
   mix3(e.gravity.value_or(Vec3{})), mix(e.density);
   // Every constant the kernels read, a field a law adds included.

@@ -511,6 +511,13 @@ void CoupledSystem::check(const StepTotals& totals, std::size_t damper,
   const EngineConfig& e = scene_.dampers[damper].engine;
   std::ostringstream s;
   s.precision(6);
+  if (totals.flags & kWallOverflow)
+    throw SimulationError(
+        "stopped " + when + ", damper " + std::to_string(damper) +
+        ": a particle touches more than " + std::to_string(kWallSlots) +
+        " surfaces, edges or corners of the container's mesh at once. Mesh the cavity more "
+        "coarsely where it bends, or raise the container's curvature (degrees) so that faces "
+        "meeting at smaller angles count as one surface");
   s << "blow-up " << when << ", damper " << damper << ": "
     << ((totals.flags & kNonFinite) ? "non-finite particle state"
                                     : "a particle left its container");

@@ -29,6 +29,12 @@ FrequencyRun::FrequencyRun(const Scene& scene, Progress progress)
       d.shape = shape_name(c.shape);
       d.size = {2 * h.x, 2 * h.y, 2 * h.z};
       d.radius = c.radius;
+      std::vector<Vec3> points;
+      std::vector<int> segments;
+      with_shape(c.shape,
+                 [&](auto shape) { decltype(shape)::wireframe(c.geometry, points, segments); });
+      for (const Vec3& p : points) d.outline_points.insert(d.outline_points.end(), {p.x, p.y, p.z});
+      d.outline_segments.assign(segments.begin(), segments.end());
     }
   }
   // Before anything is measured the bed moves with its container: a rigid mass carrying its

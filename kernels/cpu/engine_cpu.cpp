@@ -101,6 +101,7 @@ class CpuEngine final : public EngineCore<CpuArray> {
     id_.resize(n);
     std::iota(id_.begin(), id_.end(), 0);
     set_particles(c.particles);
+    place_mesh([](const auto& host, auto& array) { array = host; });
   }
 
   const StepTotals& compute(const ContainerKinematics& container, double dt) override {
@@ -188,6 +189,7 @@ class CpuEngine final : public EngineCore<CpuArray> {
       h.neighbour_mask.assign(n, 0);
       h.wall.assign(variant_.history ? 3 * kWallSlots * n : 0, 0.0);
       h.wall_mask.assign(n, 0);
+      h.wall_key.assign(variant_.history ? kWallSlots * n : 0, 0);
     }
     neighbours_.clear();
     partner_id_.clear();
@@ -228,6 +230,7 @@ class CpuEngine final : public EngineCore<CpuArray> {
     }
     c.wall_history = h.wall;
     c.wall_mask = h.wall_mask;
+    c.wall_key = h.wall_key;
     c.neighbour_mask = h.neighbour_mask;
     c.neighbour_count = neighbour_count_;
     c.reverse_count = reverse_count_;
@@ -249,6 +252,7 @@ class CpuEngine final : public EngineCore<CpuArray> {
     History& h = history_[history_current_];
     h.wall = std::move(c.wall_history);
     h.wall_mask = std::move(c.wall_mask);
+    h.wall_key = std::move(c.wall_key);
     h.neighbour_mask = std::move(c.neighbour_mask);
     neighbour_count_ = std::move(c.neighbour_count);
     reverse_count_ = std::move(c.reverse_count);
@@ -274,7 +278,8 @@ class CpuEngine final : public EngineCore<CpuArray> {
     for (const auto& s : state_)
       for (const auto* a : s.all) sum += bytes(*a);
     for (const auto& h : history_)
-      sum += bytes(h.neighbour) + bytes(h.wall) + bytes(h.neighbour_mask) + bytes(h.wall_mask);
+      sum += bytes(h.neighbour) + bytes(h.wall) + bytes(h.neighbour_mask) + bytes(h.wall_mask) +
+             bytes(h.wall_key);
     for (const auto& batch : batches_) sum += batch.bytes();
     for (const auto* a : {&id_, &neighbours_, &partner_id_, &neighbour_count_, &slot_start_,
                           &reverse_, &reverse_count_, &reverse_start_})
@@ -323,6 +328,7 @@ class CpuEngine final : public EngineCore<CpuArray> {
     // rewrites (masks whole, history where live).
     permute(hin.wall, order, 3 * kWallSlots, scratch.wall);
     permute(hin.wall_mask, order, 1, scratch.wall_mask);
+    permute(hin.wall_key, order, kWallSlots, scratch.wall_key);
 
     // The lists are compact: counted first (no lists to write into), then written from their
     // starts.

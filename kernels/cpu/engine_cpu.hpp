@@ -284,20 +284,16 @@ void for_each_marked(const std::uint8_t* kinds, int n, int bits, F&& f) {
 template <class V>
 PDSIM_COLD int list_walls(int i, const ParticleStepArgs& a, ContactBatch& batch, int walls,
                           StepTotals& sum) {
-  std::uint8_t with_history = 0, touched = 0;
-  if constexpr (V::Tangential::kHistory) with_history = a.history.wall_mask_in[i];
-  touching_walls<V>(i, a, sum, [&](int slot, double gap, Vec3 normal) {
+  touching_walls<V>(i, a, sum, [&](int slot, bool had, double gap, Vec3 normal) {
     batch.particle[walls] = i;
     batch.slot[walls] = i * kWallSlots + slot;  // its history's
-    batch.had[walls] = with_history >> slot & 1;
+    batch.had[walls] = had;
     batch.gap[walls] = gap;
     batch.normal[0][walls] = normal.x;
     batch.normal[1][walls] = normal.y;
     batch.normal[2][walls] = normal.z;
-    touched = static_cast<std::uint8_t>(touched | (1u << slot));
     ++walls;
   });
-  if constexpr (V::Tangential::kHistory) a.history.wall_mask_out[i] = touched;
   return walls;
 }
 

@@ -38,7 +38,14 @@ inline std::vector<std::int32_t> contact_counts(const std::vector<Vec3>& centre,
       if (dot(d, d) < reach * reach) ++count[i], ++count[j];
     });
   }
-  // Walls, in the container's frame, as the step kernels find them.
+  // Walls, in the container's frame, as the step kernels find them (a mesh's from bins of
+  // its own: an engine's live on its backend).
+  ContainerGeometry walls = g;
+  MeshBins bins;
+  if (shape == WallShape::mesh) {
+    bins = mesh_bins(*g.surface, r_max);
+    walls.mesh = mesh_view(*g.surface, bins);
+  }
   with_shape(shape, [&](auto shape_type) {
     using S = decltype(shape_type);
     for (int i = 0; i < n; ++i) {
@@ -47,7 +54,8 @@ inline std::vector<std::int32_t> contact_counts(const std::vector<Vec3>& centre,
                        dot(offset, container.axis_z)};
       const double r = radius[i];
       S::walls(
-          local, r, g, [&](int, double gap, Vec3) { count[i] += gap < r ? 1 : 0; }, [](double) {});
+          local, r, walls, [&](int, double gap, Vec3) { count[i] += gap < r ? 1 : 0; },
+          [](double) {});
     }
   });
   return count;

@@ -4,9 +4,12 @@
 
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <vector>
 
+#include "io/stl_mesh.hpp"
 #include "kernels/contact_count.hpp"
+#include "tests/support/stl_files.hpp"
 
 namespace {
 
@@ -40,6 +43,17 @@ TEST_CASE("contact counts: a chain touching a wall, a corner, a free particle") 
                                 {h - r - gap, h - r - gap, h - r - gap},
                                 {0.003, -0.004, 0.002}};
   CHECK(contact_counts(apart, radius, WallShape::box, g, ContainerKinematics{}) ==
+        std::vector<std::int32_t>(centre.size(), 0));
+  // The same box as 12 triangles: a face, the corner's three faces (not its edges or corner).
+  ContainerSpec spec;
+  const std::string stl =
+      stl_files::ascii(stl_files::box(2 * h, 2 * h, 2 * h, {-h, -h, -h}), "counts.stl");
+  spec.mesh = load_mesh(stl, 1.0, kDefaultCurvature);
+  std::filesystem::remove(stl);
+  const ContainerGeometry mesh = MeshShape::geometry(spec);
+  CHECK(contact_counts(centre, radius, WallShape::mesh, mesh, ContainerKinematics{}) ==
+        std::vector<std::int32_t>{2, 2, 1, 3, 0});
+  CHECK(contact_counts(apart, radius, WallShape::mesh, mesh, ContainerKinematics{}) ==
         std::vector<std::int32_t>(centre.size(), 0));
 }
 

@@ -41,10 +41,10 @@ inline std::vector<std::int32_t> contact_counts(const std::vector<Vec3>& centre,
   // Walls, in the container's frame, as the step kernels find them (a mesh's from bins of
   // its own: an engine's live on its backend).
   ContainerGeometry walls = g;
-  MeshBins bins;
+  std::shared_ptr<const MeshBins> bins;
   if (shape == WallShape::mesh) {
     bins = mesh_bins(*g.surface, r_max);
-    walls.mesh = mesh_view(*g.surface, bins);
+    walls.mesh = mesh_view(*g.surface, *bins);
   }
   with_shape(shape, [&](auto shape_type) {
     using S = decltype(shape_type);

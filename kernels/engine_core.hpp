@@ -316,13 +316,13 @@ class EngineCore : public DemEngine {
   void place_mesh(Place&& place) {
     if (config_.shape != WallShape::mesh) return;
     const MeshSurface& s = *config_.geometry.surface;
-    const MeshBins bins = mesh_bins(s, sizes_.r_max);
+    const std::shared_ptr<const MeshBins> bins = mesh_bins(s, sizes_.r_max);
     place(s.triangle, mesh_triangle_);
     place(s.key, mesh_key_);
-    place(bins.start, mesh_bin_start_);
-    place(bins.triangle, mesh_bin_triangle_);
+    place(bins->start, mesh_bin_start_);
+    place(bins->triangle, mesh_bin_triangle_);
     MeshView& v = scene_args_.geometry.mesh;
-    v = mesh_view(s, bins);
+    v = mesh_view(s, *bins);
     v.triangle = mesh_triangle_.data();
     v.key = mesh_key_.data();
     v.bin_start = mesh_bin_start_.data();

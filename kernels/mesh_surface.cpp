@@ -2,6 +2,8 @@
 // bins, made once per mesh and per engine.
 #include <cmath>
 #include <cstdint>
+#include <algorithm>
+#include <array>
 #include <map>
 #include <numeric>
 
@@ -17,6 +19,72 @@ int root(std::vector<int>& parent, int t) {
     t = parent[static_cast<std::size_t>(t)] =
         parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(t)])];
   return t;
+}
+
+// Flat surfaces (their triangles in one plane, to rounding of float STL coordinates) and the
+// edges that bound them: a bin whose whole reach projects into a flat surface, clear of those
+// edges, needs that surface's plane only. A CAD face comes as fans and slivers, dozens to
+// hundreds of coplanar triangles near one point (a cylinder's end cap: every triangle at its
+// centre); one plane test instead of a closest-feature test for each (~~t in the list).
+void plane_entries(const MeshSurface& s, double reach, const MeshBins& b,
+                   std::vector<std::vector<std::int32_t>>& lists) {
+  const std::size_t n = s.mesh.triangles.size();
+  const double tolerance = 1e-7 * norm(s.mesh.high - s.mesh.low);
+  auto T = [&](std::size_t t) { return &s.triangle[kTriangleDoubles * t]; };
+  auto normal = [&](std::size_t t) { return Vec3{T(t)[9], T(t)[10], T(t)[11]}; };
+  auto corner = [&](std::size_t t) { return Vec3{T(t)[0], T(t)[1], T(t)[2]}; };
+  std::vector<int> first(static_cast<std::size_t>(s.regions), -1);
+  std::vector<char> flat(static_cast<std::size_t>(s.regions), 1);
+  std::vector<std::vector<std::array<Vec3, 2>>> boundary(static_cast<std::size_t>(s.regions));
+  for (std::size_t t = 0; t < n; ++t) {
+    const std::int32_t* K = &s.key[kTriangleInts * t];
+    const auto r = static_cast<std::size_t>(K[0]);
+    if (first[r] < 0) first[r] = static_cast<int>(t);
+    const auto f = static_cast<std::size_t>(first[r]);
+    for (int v = 0; v < 3; ++v) {
+      const Vec3 p = s.mesh.vertices[static_cast<std::size_t>(K[10 + v])];
+      if (std::fabs(dot(p - corner(f), normal(f))) > tolerance) flat[r] = 0;
+      if (K[7 + v] != K[0])
+        boundary[r].push_back({p, s.mesh.vertices[static_cast<std::size_t>(K[10 + (v + 1) % 3])]});
+    }
+  }
+  for (std::size_t bin = 0; bin < lists.size(); ++bin) {
+    std::vector<std::int32_t>& list = lists[bin];
+    const auto i = static_cast<int>(bin % static_cast<std::size_t>(b.nx)),
+               j = static_cast<int>(bin / static_cast<std::size_t>(b.nx) %
+                                    static_cast<std::size_t>(b.ny)),
+               k = static_cast<int>(bin / (static_cast<std::size_t>(b.nx) * b.ny));
+    const Vec3 centre = b.origin + Vec3{(i + 0.5) * b.cell, (j + 0.5) * b.cell, (k + 0.5) * b.cell};
+    std::map<std::int32_t, std::int32_t> plane;  // a flat surface's triangle under the centre
+    for (const std::int32_t t : list) {
+      const std::int32_t r = s.key[kTriangleInts * static_cast<std::size_t>(t)];
+      const auto u = static_cast<std::size_t>(t);
+      if (!flat[static_cast<std::size_t>(r)] || plane.count(r)) continue;
+      const double* A = T(u);
+      // The centre's foot lies in this triangle: on its face, or on an edge or corner inside
+      // the surface (the centre of a fan).
+      const int f =
+          closest_feature(centre - corner(u), {A[3], A[4], A[5]}, {A[6], A[7], A[8]}).feature;
+      if (s.key[kTriangleInts * u + static_cast<std::size_t>(f)] != r) continue;
+      const Vec3 foot = centre - dot(centre - corner(u), normal(u)) * normal(u);
+      bool clear = true;
+      for (const auto& e : boundary[static_cast<std::size_t>(r)]) {
+        const Vec3 d = e[1] - e[0];
+        const double along = std::clamp(dot(foot - e[0], d) / dot(d, d), 0.0, 1.0);
+        if (norm(foot - (e[0] + along * d)) < reach) {
+          clear = false;
+          break;
+        }
+      }
+      if (clear) plane[r] = t;
+    }
+    if (plane.empty()) continue;
+    std::vector<std::int32_t> kept;
+    for (const std::int32_t t : list)
+      if (!plane.count(s.key[kTriangleInts * static_cast<std::size_t>(t)])) kept.push_back(t);
+    for (const auto& [r, t] : plane) kept.push_back(~t);
+    list = std::move(kept);
+  }
 }
 
 }  // namespace
@@ -100,7 +168,9 @@ MeshSurface mesh_surface(TriangleMesh mesh, double curvature_degrees) {
   return s;
 }
 
-MeshBins mesh_bins(const MeshSurface& s, double reach) {
+namespace {
+
+MeshBins build_bins(const MeshSurface& s, double reach) {
   // Bins half the reach wide, so that the near-wall layer is at most 1.9 reach deep; coarser
   // where that would make more than 2 million bins.
   constexpr double kMostBins = 2e6;
@@ -141,6 +211,7 @@ MeshBins mesh_bins(const MeshSurface& s, double reach) {
                 static_cast<std::int32_t>(t));
         }
   }
+  plane_entries(s, reach + half_diagonal, b, lists);
   b.start.reserve(lists.size() + 1);
   b.start.push_back(0);
   for (const auto& l : lists) {
@@ -148,6 +219,15 @@ MeshBins mesh_bins(const MeshSurface& s, double reach) {
     b.start.push_back(static_cast<std::int32_t>(b.triangle.size()));
   }
   return b;
+}
+
+}  // namespace
+
+std::shared_ptr<const MeshBins> mesh_bins(const MeshSurface& s, double reach) {
+  const std::lock_guard<std::mutex> lock(s.bins->mutex);
+  auto& bins = s.bins->by_reach[reach];
+  if (!bins) bins = std::make_shared<const MeshBins>(build_bins(s, reach));
+  return bins;
 }
 
 MeshView mesh_view(const MeshSurface& s, const MeshBins& b) {

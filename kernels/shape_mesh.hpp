@@ -1,9 +1,10 @@
 // The mesh container: a closed triangle surface (an STL cavity), its frame the container's.
 // A sphere touches the closest feature of each triangle near it: the face, an edge or a
 // corner. Triangles joined across edges that bend less than the surface's `curvature` form one
-// surface, which touches a sphere once (at its deepest point) and keeps one tangential history
-// as the sphere slides across its triangles; edges and corners where surfaces meet are
-// features of their own, touched only where no face next to them is (a sphere in a concave
+// surface, which touches a sphere once (at its deepest point, along its touched facets' normals
+// weighted by overlap, so that the normal turns smoothly over a curved surface) and keeps one
+// tangential history as the sphere slides across its triangles; edges and corners where surfaces
+// meet are features of their own, touched only where no face next to them is (a sphere in a concave
 // corner touches the faces, one over a convex edge the edge), so that a sphere crossing from
 // one face to the next feels one continuous wall.
 #pragma once
@@ -11,6 +12,9 @@
 #include <algorithm>
 #include <array>
 #include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -33,6 +37,19 @@ struct TriangleMesh {
   Vec3 low, high;                             // bounding box, m
 };
 
+// The bins of `s` for spheres up to radius `reach`: each bin lists the triangles within reach
+// of any point in it; the arrays a MeshView points into.
+struct MeshBins {
+  Vec3 origin;
+  double cell = 0;
+  int nx = 0, ny = 0, nz = 0;
+  std::vector<std::int32_t> start, triangle;
+};
+struct MeshBinCache {
+  std::mutex mutex;
+  std::map<double, std::shared_ptr<const MeshBins>> by_reach;
+};
+
 // The host's mesh container: the mesh, its triangles as the kernels read them (without bins:
 // those depend on the particles, mesh_bins()), and what the fill and the checks ask of it.
 struct MeshSurface {
@@ -46,23 +63,18 @@ struct MeshSurface {
   double inscribed_diameter = 0;                  // m: the widest sphere that fits
   // Whether a sphere of radius r centred at p lies inside, clear of the surface (io: CGAL).
   std::function<bool(Vec3 p, double r)> holds;
+  std::shared_ptr<MeshBinCache> bins = std::make_shared<MeshBinCache>();  // mesh_bins()
 };
 
 // A surface's triangles and the keys of their features (regions joined below `curvature`).
 MeshSurface mesh_surface(TriangleMesh mesh, double curvature_degrees);
 
-// The bins of `s` for spheres up to radius `reach`: each bin lists the triangles within reach
-// of any point in it; the arrays a MeshView points into.
-struct MeshBins {
-  Vec3 origin;
-  double cell = 0;
-  int nx = 0, ny = 0, nz = 0;
-  std::vector<std::int32_t> start, triangle;
-};
 // The kernels' view of `s` in bins `b`, host arrays (an engine on a device points it at its
 // copies).
 MeshView mesh_view(const MeshSurface& s, const MeshBins& b);
-MeshBins mesh_bins(const MeshSurface& s, double reach);
+// Built once per surface and reach (each fill's engine, the bed's and the contact counts share
+// them): a 10,000-triangle cavity's bins take about a second.
+std::shared_ptr<const MeshBins> mesh_bins(const MeshSurface& s, double reach);
 
 // The closest point of a triangle (corner a, edges ab, ac) to the point a + ap, relative to a,
 // and its feature: 0 the face, 1..3 the edges ab, bc, ca, 4..6 the corners a, b, c (Ericson,
@@ -129,46 +141,68 @@ struct MeshShape {
     enum Kind { kFace, kEdge, kCorner };
     int key[kCandidates], kind[kCandidates], triangle[kCandidates], feature[kCandidates];
     double gap[kCandidates];
-    Vec3 normal[kCandidates];
+    Vec3 normal[kCandidates], blended[kCandidates];
+    bool mixed[kCandidates];
     int n = 0;
     bool complete = true;
     for (int k = m.bin_start[bin]; k < m.bin_start[bin + 1]; ++k) {
-      const int t = m.bin_triangle[k];
+      const int entry = m.bin_triangle[k];
+      const bool plane_only = entry < 0;  // a flat surface whose face is the closest feature
+      const int t = plane_only ? ~entry : entry;
       const double* T = m.triangle + kTriangleDoubles * t;
       const Vec3 ap = local - Vec3{T[0], T[1], T[2]}, inward{T[9], T[10], T[11]};
       const double plane = dot(ap, inward);
       if (fabs(plane) >= r) continue;  // the whole triangle is further
-      const ClosestFeature f = closest_feature(ap, {T[3], T[4], T[5]}, {T[6], T[7], T[8]});
-      const Vec3 d = ap - f.point;
-      const double dist_sq = dot(d, d);
-      if (dist_sq >= r * r) continue;
+      ClosestFeature f{ap - plane * inward, 0};
+      double dist_sq = plane * plane;
+      if (!plane_only) {
+        f = closest_feature(ap, {T[3], T[4], T[5]}, {T[6], T[7], T[8]});
+        const Vec3 d = ap - f.point;
+        dist_sq = dot(d, d);
+        if (dist_sq >= r * r) continue;
+      }
       const std::int32_t* K = m.key + kTriangleInts * t;
       const int its_key = K[f.feature];
       double its_gap = plane;
       Vec3 its_normal = inward;
       if (f.feature != 0) {  // off the face: along the line from the feature to the centre
+        const Vec3 d = ap - f.point;
         const double dist = sqrt(dist_sq), side = plane < 0 ? -1 : 1;
         its_gap = side * dist;
         if (dist > 0) its_normal = (side / dist) * d;
       }
       int c = 0;
       while (c < n && key[c] != its_key) ++c;
+      const bool surface = its_key < m.regions;
       if (c == n) {
         if (n == kCandidates) {
           complete = false;
           continue;
         }
         ++n;
-      } else if (its_gap >= gap[c]) {
-        continue;
+        key[c] = its_key;
+        kind[c] = surface ? kFace : f.feature < 4 ? kEdge : kCorner;
+        gap[c] = 1e300;
+        normal[c] = surface ? inward : its_normal;
+        blended[c] = (r - its_gap) * inward;
+        mixed[c] = false;
+      } else if (surface) {
+        // A surface touched on several facets: one contact whose normal is their face normals
+        // weighted by overlap, turning smoothly as the sphere crosses from facet to facet
+        // (the nearest facet's alone would flip across each fold and rock the sphere on it).
+        // A flat surface's facets share one normal, which stays exact.
+        blended[c] = blended[c] + (r - its_gap) * inward;
+        mixed[c] = mixed[c] || inward.x != normal[c].x || inward.y != normal[c].y ||
+                   inward.z != normal[c].z;
       }
-      key[c] = its_key;
-      kind[c] = its_key < m.regions ? kFace : f.feature < 4 ? kEdge : kCorner;
+      if (its_gap >= gap[c]) continue;
       triangle[c] = t;
       feature[c] = f.feature;
       gap[c] = its_gap;
-      normal[c] = its_normal;
+      if (!surface) normal[c] = its_normal;
     }
+    for (int c = 0; c < n; ++c)
+      if (mixed[c]) normal[c] = (1 / norm(blended[c])) * blended[c];
     // An edge is touched only where neither surface beside it is, a corner only where no
     // face or edge of a triangle around it is: otherwise that face holds the sphere off it.
     bool kept[kCandidates];
@@ -201,9 +235,9 @@ struct MeshShape {
     std::ostringstream o;
     o << name << " " << s.file << " (scale " << s.scale << "): " << s.mesh.triangles.size()
       << " triangles, " << s.regions << " surface" << (s.regions == 1 ? "" : "s") << " (curvature "
-      << s.curvature << " deg), bounding box [" << s.mesh.low.x << ", " << s.mesh.low.y << ", "
-      << s.mesh.low.z << "] to [" << s.mesh.high.x << ", " << s.mesh.high.y << ", " << s.mesh.high.z
-      << "] m";
+      << s.curvature << " deg), volume " << s.mesh.volume << " m^3, bounding box [" << s.mesh.low.x
+      << ", " << s.mesh.low.y << ", " << s.mesh.low.z << "] to [" << s.mesh.high.x << ", "
+      << s.mesh.high.y << ", " << s.mesh.high.z << "] m";
     return o.str();
   }
 
@@ -220,7 +254,7 @@ struct MeshShape {
   static double smallest_inner_size(const ContainerGeometry& g) {
     return g.surface->inscribed_diameter;
   }
-  // The edges where surfaces meet.
+  // The edges where surfaces meet (a cavity that is one smooth surface: all its edges).
   static void wireframe(const ContainerGeometry& g, std::vector<Vec3>& points,
                         std::vector<int>& segments) {
     const MeshSurface& s = *g.surface;
@@ -228,6 +262,11 @@ struct MeshShape {
     points.insert(points.end(), s.mesh.vertices.begin(), s.mesh.vertices.end());
     for (const auto& e : s.feature_edges)
       segments.insert(segments.end(), {base + e[0], base + e[1]});
+    if (!s.feature_edges.empty()) return;
+    for (const auto& t : s.mesh.triangles)  // one smooth surface: every edge, once
+      for (int k = 0; k < 3; ++k)
+        if (t[k] < t[(k + 1) % 3])
+          segments.insert(segments.end(), {base + t[k], base + t[(k + 1) % 3]});
   }
 };
 

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -18,6 +19,7 @@
 #include "io/results.hpp"
 #include "src/format.hpp"  // number(), as the log writes frequencies
 #include "src/run.hpp"
+#include "tests/support/stl_files.hpp"
 
 namespace fs = std::filesystem;
 
@@ -75,7 +77,58 @@ std::string deck(const std::string& name) {
   return std::string(PDSIM_TEST_DIR) + "/decks/" + name;
 }
 
+// A prescribed shake of 20 spheres in the STL cavity `stl`.
+std::string mesh_deck(const std::string& stl) {
+  return "[[damper]]\ncontainer = { shape = \"mesh\", file = \"" + stl +
+         "\", scale = 0.001 }\nparticles = { count = 20, diameter = 0.004, density = 7800.0 }\n"
+         "[contact]\nmodel = \"linear\"\nstiffness = 2000.0\nrestitution = 0.5\n"
+         "tangential = \"none\"\n[excitation]\nkind = \"prescribed\"\n"
+         "motion = { axis = [1.0, 0.0, 0.0], amplitude = 0.002, frequency = 20.0 }\n"
+         "duration = 0.05\n[output]\nfile = \"mesh.h5\"\n";
+}
+
 }  // namespace
+
+TEST_CASE("mesh containers: check reports the cavity, bad meshes exit 1 naming the key and file") {
+  using namespace pdsim::stl_files;
+  Sandbox box;
+  const std::string deck_path = scratch("mesh.toml");
+  auto run_with = [&](const std::string& stl, const char* command, std::string* log) {
+    std::ofstream(deck_path) << mesh_deck(stl);
+    return box.pdsim(std::string(command) + " '" + deck_path + "'", log);
+  };
+  // A 30 mm cube in mm: 27 cm^3, 12 triangles, 6 surfaces.
+  std::string log;
+  REQUIRE(run_with(binary(pdsim::stl_files::box(30, 30, 30), "cube.stl"), "check", &log) == 0);
+  CHECK(log.find("12 triangles, 6 surfaces") != std::string::npos);
+  CHECK(log.find("volume 2.7e-05 m^3") != std::string::npos);
+  CHECK(log.find("fill fraction 0.0248") != std::string::npos);  // 20 x 33.5 mm^3 / 27 cm^3
+  CHECK(log.find("deck OK") != std::string::npos);
+  std::vector<Triangle> open = pdsim::stl_files::box(30, 30, 30);
+  open.pop_back();
+  std::vector<Triangle> flipped = pdsim::stl_files::box(30, 30, 30);
+  std::swap(flipped[4][1], flipped[4][2]);
+  std::vector<Triangle> nan = pdsim::stl_files::box(30, 30, 30);
+  nan[0][0].x = std::numeric_limits<double>::quiet_NaN();
+  std::ofstream(scratch("empty.stl"));
+  const std::pair<std::string, std::string> bad[] = {
+      {ascii(open, "open.stl"), "not closed"},
+      {ascii(flipped, "flipped.stl"), "not consistently oriented"},
+      {binary(nan, "nan.stl"), "not a number"},
+      {scratch("empty.stl").string(), "empty (0 bytes)"}};
+  for (const auto& [stl, why] : bad) {
+    CAPTURE(stl);
+    for (const char* command : {"check", "run"}) {
+      CHECK(run_with(stl, command, &log) == 1);
+      CHECK(log.find("mesh.toml:2:") != std::string::npos);
+      CHECK(log.find("container.file") != std::string::npos);
+      CHECK(log.find(stl) != std::string::npos);
+      CHECK(log.find(why) != std::string::npos);
+      CHECK(box.files() == 0);
+    }
+  }
+  fs::remove_all(fs::path(deck_path).parent_path());
+}
 
 TEST_CASE("bad decks exit 1 with the position, and write nothing") {
   Sandbox box;
@@ -232,7 +285,7 @@ TEST_CASE("check passes on every example deck and every good test deck") {
   Sandbox box;
   std::vector<fs::path> decks;
   for (const auto& entry : fs::directory_iterator(std::string(PDSIM_TEST_DIR) + "/../examples"))
-    decks.push_back(entry.path());
+    if (entry.path().extension() == ".toml") decks.push_back(entry.path());  // not their STLs
   for (const auto& entry : fs::directory_iterator(std::string(PDSIM_TEST_DIR) + "/decks"))
     if (entry.path().filename().string().rfind("good_", 0) == 0) decks.push_back(entry.path());
   for (const fs::path& path : decks) {

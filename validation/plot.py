@@ -37,6 +37,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: E402
 import numpy as np  # noqa: E402
 import h5py  # noqa: E402
 
@@ -191,6 +192,10 @@ def bed(args):
             radius, size = d["radius"][()], d["container_size"][()]
             centre, axes = d["container_position"][t], d["container_axes"][t]
             shape = plot_frf.text(d.attrs["shape"])
+            outline = None  # files of pdsim before 2026-12-04 have none
+            if "container_outline_points" in d:
+                outline = (d["container_outline_points"][()] * 1e3,
+                           d["container_outline_segments"][()])
             title = plot_frf.text(h5["meta"].attrs.get("title")) or os.path.basename(args.file)
     except (OSError, KeyError) as error:
         sys.exit(f"plot.py: cannot read the snapshots of {args.file}: {error}")
@@ -204,7 +209,11 @@ def bed(args):
     dots = view.scatter(local[:, 0], local[:, 1], local[:, 2], s=np.pi * scale * (radius * 1e3) ** 2,
                         c=speed, cmap="viridis", depthshade=True, edgecolors="k", linewidths=0.2)
     figure.colorbar(dots, ax=view, shrink=0.6, label="speed (m/s)")
-    if shape == "box":
+    if outline is not None:
+        points, segments = outline
+        view.add_collection3d(Line3DCollection(points[segments], colors="0.5",
+                                               linewidths=0.4 if len(segments) > 200 else 0.8))
+    elif shape == "box":
         for a in (-1, 1):
             for b in (-1, 1):
                 for axis in range(3):
@@ -218,7 +227,10 @@ def bed(args):
         angle = np.linspace(0, 2 * np.pi, 65)
         for z in (-half[2], half[2]):
             view.plot(half[0] * np.cos(angle), half[1] * np.sin(angle), z, color="0.5", lw=0.8)
-    view.set_box_aspect(half)
+    for limits, h in ((view.set_xlim3d, half[0]), (view.set_ylim3d, half[1]),
+                      (view.set_zlim3d, half[2])):
+        limits(-h, h)
+    view.set_box_aspect(half.copy())  # matplotlib 3.6 scales the array it is given in place
     view.set_xlabel("x (mm)")
     view.set_ylabel("y (mm)")
     view.set_zlabel("z (mm)")

@@ -1,0 +1,84 @@
+#!/usr/bin/python3
+"""Damper cavities as binary STL files, for `container = { shape = "mesh", file = ... }`.
+
+Usage: validation/cavity_stl.py capsule OUT.stl [--radius 25] [--length 30] [--segments 48]
+                                                [--rings 12]
+       validation/cavity_stl.py cylinder OUT.stl [--radius 28] [--length 50] [--segments 512]
+
+Coordinates are in the units given (mm by default: a deck reads them with scale = 0.001).
+  capsule:  a cylinder of `radius` and straight `length` along x with hemispherical end caps,
+            centred at the origin; `segments` facets around the axis, `rings` bands per cap.
+            examples/capsule_cavity.stl is `capsule` with the defaults (2,304 triangles).
+  cylinder: a closed cylinder along z centred at the origin, fans for the end caps
+            (4 x `segments` triangles), as the analytic `shape = "cylinder"`.
+Triangles run counter-clockwise seen from outside. Pure Python: any python3 runs it.
+"""
+import argparse
+import math
+import struct
+
+
+def revolve(profile, segments):
+    """The surface swept by `profile` [(x, rho), ...] (from one pole to the other along x)
+    about the x axis: triangles counter-clockwise seen from outside, none at the poles."""
+    def at(x, rho, j):
+        phi = 2 * math.pi * (j % segments) / segments
+        return (x, rho * math.cos(phi), rho * math.sin(phi))
+    triangles = []
+    for (x0, r0), (x1, r1) in zip(profile, profile[1:]):
+        for j in range(segments):
+            a, b = at(x0, r0, j), at(x0, r0, j + 1)
+            c, d = at(x1, r1, j + 1), at(x1, r1, j)
+            if r0 > 0:
+                triangles.append((a, b, c))
+            if r1 > 0:
+                triangles.append((a, c, d))
+    return triangles
+
+
+def capsule(radius, length, segments, rings):
+    half = 0.5 * length
+    cap = [(half + radius * math.sin(t), radius * math.cos(t))
+           for t in (0.5 * math.pi * k / rings for k in range(rings + 1))]
+    cap[-1] = (half + radius, 0.0)  # the pole exact, so that its triangles share it
+    profile = [(-x, rho) for x, rho in reversed(cap)] + cap
+    return revolve(profile, segments)
+
+
+def cylinder(radius, length, segments):
+    """Along z: the x-axis cylinder of revolve() turned by (x, y, z) -> (y, z, x), which keeps
+    the orientation."""
+    half = 0.5 * length
+    profile = [(-half, 0.0), (-half, radius), (half, radius), (half, 0.0)]
+    # The caps as fans from their centres: revolve() gives them as such (its pole triangles).
+    return [tuple((p[1], p[2], p[0]) for p in t) for t in revolve(profile, segments)]
+
+
+def write_binary(triangles, path):
+    with open(path, "wb") as out:
+        out.write(b"pdsim validation/cavity_stl.py".ljust(80, b" "))
+        out.write(struct.pack("<I", len(triangles)))
+        for t in triangles:
+            out.write(struct.pack("<12fH", 0.0, 0.0, 0.0, *(c for p in t for c in p), 0))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("kind", choices=["capsule", "cylinder"])
+    parser.add_argument("out")
+    parser.add_argument("--radius", type=float)
+    parser.add_argument("--length", type=float)
+    parser.add_argument("--segments", type=int)
+    parser.add_argument("--rings", type=int, default=12)
+    a = parser.parse_args()
+    if a.kind == "capsule":
+        t = capsule(a.radius or 25.0, a.length or 30.0, a.segments or 48, a.rings)
+    else:
+        t = cylinder(a.radius or 28.0, a.length or 50.0, a.segments or 512)
+    write_binary(t, a.out)
+    print(f"{a.out}: {a.kind}, {len(t)} triangles")
+
+
+if __name__ == "__main__":
+    main()

@@ -67,12 +67,7 @@ def scenes(workdir):
                     f'{{ shape = "mesh", file = "{path}", scale = 0.001 }}', "analytic cylinder"))
     out.append(("analytic box", '{ shape = "box", size = [0.04, 0.04, 0.04] }', None))
     path = os.path.join(workdir, "box.stl")
-    h = 20.0
-    corners = [(x, y, z) for z in (-h, h) for y in (-h, h) for x in (-h, h)]
-    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
-    box = [t for q in quads for t in ((corners[q[0]], corners[q[1]], corners[q[2]]),
-                                      (corners[q[0]], corners[q[2]], corners[q[3]]))]
-    cavity_stl.write_binary(box, path)
+    cavity_stl.write_binary(cavity_stl.box(40.0, 40.0, 40.0), path)
     out.append(("mesh box, 12 triangles", f'{{ shape = "mesh", file = "{path}", scale = 0.001 }}',
                 "analytic box"))
     return out

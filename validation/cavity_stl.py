@@ -54,6 +54,14 @@ def cylinder(radius, length, segments):
     return [tuple((p[1], p[2], p[0]) for p in t) for t in revolve(profile, segments)]
 
 
+def box(a, b, c):
+    """The box a x b x c centred at the origin: 12 triangles."""
+    corners = [(x, y, z) for z in (-c / 2, c / 2) for y in (-b / 2, b / 2) for x in (-a / 2, a / 2)]
+    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    return [t for q in quads for t in ((corners[q[0]], corners[q[1]], corners[q[2]]),
+                                       (corners[q[0]], corners[q[2]], corners[q[3]]))]
+
+
 def write_binary(triangles, path):
     with open(path, "wb") as out:
         out.write(b"pdsim validation/cavity_stl.py".ljust(80, b" "))

@@ -2,8 +2,9 @@
 """Damper cavities as binary STL files, for `container = { shape = "mesh", file = ... }`.
 
 Usage: validation/cavity_stl.py capsule OUT.stl [--radius 25] [--length 30] [--segments 48]
-                                                [--rings 12]
+                                                [--rings 12] [--ascii [--offset X Y Z]]
        validation/cavity_stl.py cylinder OUT.stl [--radius 28] [--length 50] [--segments 512]
+                                                 [--ascii [--offset X Y Z]]
 
 Coordinates are in the units given (mm by default: a deck reads them with scale = 0.001).
   capsule:  a cylinder of `radius` and straight `length` along x with hemispherical end caps,
@@ -70,6 +71,18 @@ def write_binary(triangles, path):
             out.write(struct.pack("<12fH", 0.0, 0.0, 0.0, *(c for p in t for c in p), 0))
 
 
+def write_ascii(triangles, path, offset=(0.0, 0.0, 0.0)):
+    """ASCII STL (LIGGGHTS 3.8 reads no binary STL), every vertex moved by `offset`."""
+    with open(path, "w") as out:
+        out.write("solid cavity\n")
+        for t in triangles:
+            out.write("facet normal 0 0 0\nouter loop\n")
+            for p in t:
+                out.write("vertex %r %r %r\n" % tuple(c + o for c, o in zip(p, offset)))
+            out.write("endloop\nendfacet\n")
+        out.write("endsolid cavity\n")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -79,12 +92,18 @@ def main():
     parser.add_argument("--length", type=float)
     parser.add_argument("--segments", type=int)
     parser.add_argument("--rings", type=int, default=12)
+    parser.add_argument("--ascii", action="store_true", help="ASCII STL instead of binary")
+    parser.add_argument("--offset", type=float, nargs=3, default=(0.0, 0.0, 0.0),
+                        metavar=("X", "Y", "Z"), help="move every vertex by this (with --ascii)")
     a = parser.parse_args()
     if a.kind == "capsule":
         t = capsule(a.radius or 25.0, a.length or 30.0, a.segments or 48, a.rings)
     else:
         t = cylinder(a.radius or 28.0, a.length or 50.0, a.segments or 512)
-    write_binary(t, a.out)
+    if a.ascii:
+        write_ascii(t, a.out, a.offset)
+    else:
+        write_binary(t, a.out)
     print(f"{a.out}: {a.kind}, {len(t)} triangles")
 
 

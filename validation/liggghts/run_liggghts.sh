@@ -5,8 +5,9 @@
 #   SCENE: a (196 particles, 0.04 m cube), b (8000, 0.11 x 0.11 x 0.2 m),
 #          c (100000, 0.26 x 0.26 x 0.4 m): steel (E = 2e11 Pa, e = 0.5), dt = 1e-6 s, shaken
 #          4 mm at 20 Hz; p (the dense pile of `pdsim bench`: 250 particles, 0.05 m cube,
-#          E = 2e9 Pa, e = 0.6, dt = 4e-6 s, shaken 1 mm at 15 Hz); NP: MPI ranks; STEPS: timed
-#          time steps.
+#          E = 2e9 Pa, e = 0.6, dt = 4e-6 s, shaken 1 mm at 15 Hz); y (250 particles in the
+#          cylinder r = 28 mm, h = 50 mm given as STL, E = 2e9 Pa, e = 0.5, dt = 4e-6 s, shaken
+#          3 mm at 20 Hz; needs STL and BED); NP: MPI ranks; STEPS: timed time steps.
 # environment (optional):
 #   SKIN=<m>           neighbour skin, default 0.0005 m (0.1 d, the faster of the tried ones)
 #   WARMUP=<k>         time steps run before the timed ones (the fall from the lattice), default 0
@@ -18,6 +19,8 @@
 #   AMPLITUDE=<m>, FREQUENCY=<Hz>, DT=<s>  the box's motion and the step instead of the scene's
 #                      (a damper map point; power_force.py needs whole periods of DT)
 #   BED=<bed.h5>:<fill>  start from that fill of a bed pdsim settled instead of the lattice
+#   STL=<file.stl>     the container as this ASCII STL (metres, in the frame [0, L] of the
+#                      scene's box) instead of the box
 #   MPIRUN_FLAGS       extra mpirun flags
 # output: liggghts scene=<s> particles=<n> ranks=<np> steps=<k> wall_s=<loop time>
 #         particle_steps_per_s=<r> total_wall_s=<process wall time incl. start-up and input>
@@ -25,7 +28,7 @@
 set -euo pipefail
 
 if [[ $# -ne 3 ]]; then
-  sed -n "2,24p" "$0" >&2
+  sed -n "2,29p" "$0" >&2
   exit 2
 fi
 scene=$1 ranks=$2 steps=$3
@@ -40,7 +43,9 @@ case $scene in
   c | 100k) scene=c count=100000 box=(0.26 0.26 0.4) ;;
   p | pile) scene=p count=250 box=(0.05 0.05 0.05) young=2.0e9 restitution=0.6 dt=4.0e-6
     amplitude=0.001 period=0.0666666666666667 ;;
-  *) echo "unknown scene '$scene' (a, b, c or p)" >&2; exit 2 ;;
+  y | cylinder) scene=y count=250 box=(0.056 0.056 0.05) young=2.0e9 restitution=0.5 dt=4.0e-6
+    amplitude=0.003 period=0.05 ;;
+  *) echo "unknown scene '$scene' (a, b, c, p or y)" >&2; exit 2 ;;
 esac
 amplitude=${AMPLITUDE:-$amplitude} dt=${DT:-$dt}
 [[ -n ${FREQUENCY:-} ]] && period=$(python3 -c "print(repr(1.0 / float('$FREQUENCY')))")
@@ -58,7 +63,11 @@ fi
 
 # the domain must hold the mesh over its whole stroke: amplitude plus a diameter along x
 margin_x=0.01 margin=0.002
-python3 "$here/make_box_stl.py" "${box[@]}" "$workdir/box.stl"
+if [[ -n ${STL:-} ]]; then
+  cp "$STL" "$workdir/box.stl"
+else
+  python3 "$here/make_box_stl.py" "${box[@]}" "$workdir/box.stl"
+fi
 if [[ -n ${BED:-} ]]; then
   /usr/bin/python3 "$here/bed_data.py" "${BED%:*}" "${BED##*:}" "$diameter" 7800 "${box[@]}" \
     "$margin_x" "$margin" "$workdir/lattice.data"

@@ -1,18 +1,18 @@
 #!/usr/bin/env bash
 # `pdsim sweep --slurm` on a real single-node Slurm (tests/cluster/slurm_cluster.sh): every
 # point's file bitwise equal to the local sweep's (every dataset and attribute but the wall
-# time) and the same summary.csv, and so are those of `srun -n 2 pdsim sweep --ranks`; then one
-# task cancelled mid-run (its first frequency done), resubmitted with --slurm --resume, and its
-# point bitwise the uninterrupted one. Slurm records a failed task as COMPLETED here
+# time) and the same summary.csv, and so are those of `srun -n 2 pdsim sweep --ranks` and of
+# `mpirun -np 2 pdsim sweep --ranks`; then one task cancelled mid-run (its first frequency
+# done), resubmitted with --slurm --resume, and its point bitwise the uninterrupted one. Slurm records a failed task as COMPLETED here
 # (proctrack/linuxproc), so the files are checked, not job states. Last, `pdsim map --slurm`
 # against the local map.
 # Usage: slurm_test.sh PDSIM DECK (a sweep deck; the map deck is made from it).
 set -euo pipefail
 pdsim=$(realpath "$1")
 deck=$(realpath "$2")
-for program in munged slurmctld slurmd sbatch srun squeue scancel; do
+for program in munged slurmctld slurmd sbatch srun squeue scancel mpirun; do
   if ! command -v "$program" >/dev/null; then
-    echo "FAIL: $program is not installed (bash .ci/install-deps installs Slurm and munge)"
+    echo "FAIL: $program is not installed (bash .ci/install-deps installs Slurm, munge and Open MPI)"
     exit 1
   fi
 done
@@ -94,6 +94,13 @@ timeout 120 srun -n 2 --cpus-per-task=1 "$pdsim" sweep deck.toml --ranks --jobs 
 grep -q "rank 1 of 2: 2 of its 2 points finished" ranked.txt || fail "$(cat ranked.txt)"
 for k in 1 2 3 4; do same_files local/p00$k.h5 ranked/p00$k.h5 || fail "ranked point $k"; done
 diff <(summary local/summary.csv) <(summary ranked/summary.csv) || fail "ranked summary.csv"
+
+# Open MPI's mpirun as the launcher (OMPI_COMM_WORLD_RANK/SIZE; pdsim links no MPI): the same.
+timeout 120 mpirun --allow-run-as-root --oversubscribe -np 2 "$pdsim" sweep deck.toml --ranks \
+  --jobs 1 --threads 1 -o mpi >mpi.txt 2>&1 || fail "mpirun --ranks: $(cat mpi.txt)"
+grep -q "4 of 4 points finished" mpi.txt || fail "$(cat mpi.txt)"
+for k in 1 2 3 4; do same_files local/p00$k.h5 mpi/p00$k.h5 || fail "mpirun point $k"; done
+diff <(summary local/summary.csv) <(summary mpi/summary.csv) || fail "mpirun summary.csv"
 
 # A task cancelled once its point's first frequency is done, then the point resubmitted alone.
 timeout 60 "$pdsim" sweep deck.toml --slurm --jobs 1 -o cancel >cancel.txt || fail "$(cat cancel.txt)"

@@ -75,10 +75,12 @@ void agree(const std::string& name, const Shaken& mesh, const Shaken& analytic) 
   const double force_allowed = mesh.force_ci + analytic.force_ci;
   CHECK(std::fabs(mesh.power - analytic.power) < power_allowed);
   CHECK(std::fabs(mesh.force - analytic.force) < force_allowed);
-  validation_row(name + ": dissipated power", "the analytic container, same fills", analytic.power,
-                 mesh.power, power_allowed / analytic.power, "W");
-  validation_row(name + ": force harmonic", "the analytic container, same fills", analytic.force,
-                 mesh.force, force_allowed / analytic.force, "N");
+  const std::string source =
+      "the analytic container, " + std::to_string(analytic.fills) + " fills of the same seeds";
+  validation_row(name + ": dissipated power", source, analytic.power, mesh.power,
+                 power_allowed / analytic.power, "W");
+  validation_row(name + ": force harmonic", source, analytic.force, mesh.force,
+                 force_allowed / analytic.force, "N");
 }
 
 std::string mesh_table(const std::string& path) {

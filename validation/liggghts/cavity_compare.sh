@@ -45,7 +45,7 @@ dt = 4.0e-6
 [output]
 file = "pdsim.h5"
 EOF
-"$pdsim" run deck.toml --quiet -o pdsim.h5
+"$pdsim" run deck.toml --quiet --threads 1 -o pdsim.h5
 for ((k = 0; k < fills; k++)); do
   KEEP_DIR=$work/l$k SAMPLE_EVERY=50 BED=$work/bed.h5:$k STL=$work/liggghts.stl \
     "$here/run_liggghts.sh" y 1 125000 >"l$k.timing"
@@ -65,6 +65,11 @@ with h5py.File(os.path.join(work, "pdsim.h5"), "r") as h:
     pdsim = {"power": (p["dissipated_power"][0], p["dissipated_power_ci"][0]),
              "force": (p["force_amplitude"][0], p["force_amplitude_ci"][0])}
     assert int(p["realisations"][0]) == fills
+    pdsim_rate = h["meta"].attrs["particle_steps"] / h["meta"].attrs["wall_time_s"]
+rates = []
+for k in range(fills):
+    line = open(os.path.join(work, "l%d.timing" % k)).read()
+    rates.append(float(line.split("particle_steps_per_s=")[1].split()[0]))
 def value(k, key):
     for line in open(os.path.join(work, "l%d.txt" % k)):
         if line.startswith(key + " = "):
@@ -90,7 +95,10 @@ text = "\n".join([
     "own; LIGGGHTS': Student t over the fills); they agree when the means differ by less than "
     "the sum of the half-widths: %s." % (datetime.date.today(), version, liggghts, fills,
                                           "they do" if ok else "they DO NOT"),
-    "", *rows, ""])
+    "", *rows, "",
+    "Speed, one thread each: pdsim %.3g particle-steps/s over its whole run (fills settled, "
+    "filled and run); LIGGGHTS %.3g over its time-step loops (median of the fills)."
+    % (pdsim_rate, float(np.median(rates))), ""])
 print(text)
 open(out, "w").write(text)
 sys.exit(0 if ok else 1)

@@ -142,6 +142,7 @@ struct MeshShape {
     int key[kCandidates], kind[kCandidates], triangle[kCandidates], feature[kCandidates];
     double gap[kCandidates];
     Vec3 normal[kCandidates], blended[kCandidates];
+    double weight[kCandidates];
     bool mixed[kCandidates];
     int n = 0;
     bool complete = true;
@@ -185,6 +186,7 @@ struct MeshShape {
         gap[c] = 1e300;
         normal[c] = surface ? inward : its_normal;
         blended[c] = (r - its_gap) * inward;
+        weight[c] = r - its_gap;
         mixed[c] = false;
       } else if (surface) {
         // A surface touched on several facets: one contact whose normal is their face normals
@@ -192,6 +194,7 @@ struct MeshShape {
         // (the nearest facet's alone would flip across each fold and rock the sphere on it).
         // A flat surface's facets share one normal, which stays exact.
         blended[c] = blended[c] + (r - its_gap) * inward;
+        weight[c] += r - its_gap;
         mixed[c] = mixed[c] || inward.x != normal[c].x || inward.y != normal[c].y ||
                    inward.z != normal[c].z;
       }
@@ -199,10 +202,14 @@ struct MeshShape {
       triangle[c] = t;
       feature[c] = f.feature;
       gap[c] = its_gap;
-      if (!surface) normal[c] = its_normal;
+      normal[c] = surface ? inward : its_normal;
     }
-    for (int c = 0; c < n; ++c)
-      if (mixed[c]) normal[c] = (1 / norm(blended[c])) * blended[c];
+    for (int c = 0; c < n; ++c) {
+      // Facets facing apart (a surface wrapped round the sphere, which io/decks.md warns of)
+      // cancel: the deepest facet's normal then stands alone.
+      const double length = mixed[c] ? norm(blended[c]) : 0;
+      if (length > 0.5 * weight[c]) normal[c] = (1 / length) * blended[c];
+    }
     // An edge is touched only where neither surface beside it is, a corner only where no
     // face or edge of a triangle around it is: otherwise that face holds the sphere off it.
     bool kept[kCandidates];

@@ -162,3 +162,35 @@ TEST_CASE("an L-shaped cavity: a ball meeting its re-entrant edge bounces off th
                    "Tsuji's restitution of the Hertz law", 5e-4,
                    std::fabs(dot(v, bisector) / speed + e), "");
 }
+
+TEST_CASE("a surface wrapped round a sphere: facets that cancel leave the deepest one's normal") {
+  // A tube of 64 facets joined into one surface (curvature 10 deg > its 5.6 deg folds), 1 %
+  // narrower than a ball at its centre (a neck no fill would put it in: the walls are asked
+  // directly): every facet touches it and their normals sum to about zero. The surface gives
+  // one contact (io/decks.md: one surface counts once) along the deepest facet's normal, never
+  // along a normal of length zero.
+  const double tube = 0.99 * kRadius;
+  ContainerSpec spec;
+  const std::string path =
+      stl_files::ascii(stl_files::cylinder(tube, 10 * kRadius, 64), "tube.stl");
+  spec.mesh = load_mesh(path, 1.0, 10.0);
+  std::filesystem::remove(path);
+  REQUIRE(spec.mesh->regions == 3);  // the tube and its two caps
+  ContainerGeometry g = MeshShape::geometry(spec);
+  const auto bins = mesh_bins(*spec.mesh, kRadius);
+  g.mesh = mesh_view(*spec.mesh, *bins);
+  int contacts = 0;
+  Vec3 normal;
+  double gap = 0;
+  MeshShape::walls(
+      {1e-9, 0, 0}, kRadius, g, [&](int, double g_, Vec3 n) { ++contacts, gap = g_, normal = n; },
+      [](double) {});
+  CHECK(contacts == 1);
+  CHECK(std::fabs(gap - tube * std::cos(kPi / 64)) < 2e-9);  // the nearest facet's plane
+  // A facet's own normal: facet k faces outward at (k + 1/2) 2 pi / 64 (the normals' weighted
+  // sum would point along -x, the side the ball is pushed off centre to).
+  CHECK(std::fabs(norm(normal) - 1) < 1e-12);
+  CHECK(std::fabs(normal.z) < 1e-12);
+  const double facet = std::atan2(-normal.y, -normal.x) / (2 * kPi / 64) - 0.5;
+  CHECK(std::fabs(facet - std::round(facet)) < 1e-6);
+}

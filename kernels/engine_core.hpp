@@ -87,7 +87,8 @@ struct CheckpointField {
   const char* name;
   CheckpointExtent extent;
   int values;
-  bool history;
+  bool history;        // empty without tangential history
+  bool keyed = false;  // empty unless the walls are keyed (a mesh) too
 };
 
 // The checkpoint's arrays, declared once: f(field, array) for each, its element type the
@@ -110,7 +111,7 @@ void for_each_array(Checkpoint& c, F&& f) {
   f(CheckpointField{"history", E::slot, 3, true}, c.history);
   f(CheckpointField{"wall_history", E::particle, 3 * kWallSlots, true}, c.wall_history);
   f(CheckpointField{"wall_mask", E::particle, 1, false}, c.wall_mask);
-  f(CheckpointField{"wall_key", E::particle, kWallSlots, true}, c.wall_key);
+  f(CheckpointField{"wall_key", E::particle, kWallSlots, true, true}, c.wall_key);
   f(CheckpointField{"neighbour_mask", E::particle, 1, false}, c.neighbour_mask);
   f(CheckpointField{"neighbours", E::slot, 1, false}, c.neighbours);
   f(CheckpointField{"partner_id", E::slot, 1, false}, c.partner_id);
@@ -191,7 +192,7 @@ inline constexpr const char* kTypeNames[] = {"double", "int32", "uint64", "uint8
 // history, refusing (SimulationError, naming the array) one that is not: an array missing,
 // unknown, of another type or length, or a particle or list index out of range, so that a
 // damaged or foreign checkpoint is never read past an array's end.
-inline EngineCheckpoint from_arrays(const StateArrays& in, int count, bool history) {
+inline EngineCheckpoint from_arrays(const StateArrays& in, int count, bool history, bool keyed) {
   EngineCheckpoint c;
   const auto& origin = state_values<double>(in, kGridArrays[0]);
   const auto& cells = state_values<std::int32_t>(in, kGridArrays[2]);
@@ -226,8 +227,8 @@ inline EngineCheckpoint from_arrays(const StateArrays& in, int count, bool histo
     const std::size_t per = f.extent == CheckpointExtent::particle ? n
                             : f.extent == CheckpointExtent::slot   ? slots
                                                                    : 1;
-    const std::size_t expected =
-        f.history && !history ? 0 : per * static_cast<std::size_t>(f.values);
+    const bool absent = (f.history && !history) || (f.keyed && !(history && keyed));
+    const std::size_t expected = absent ? 0 : per * static_cast<std::size_t>(f.values);
     values = std::get<Values>(it->second);
     if (values.size() != expected)
       throw SimulationError(
@@ -288,6 +289,8 @@ class EngineCore : public DemEngine {
   std::string variant() const override { return variant_.name; }
 
  protected:
+  // Whether the walls' history is keyed (kernels/shape_mesh.hpp): only then are the keys kept.
+  bool keyed_history() const { return variant_.history && config_.shape == WallShape::mesh; }
   struct State {  // the particles' nine columns
     Array<double> x, y, z, vx, vy, vz, wx, wy, wz;
     Array<double>* all[9] = {&x, &y, &z, &vx, &vy, &vz, &wx, &wy, &wz};

@@ -77,9 +77,10 @@ struct Gather {
       for (int s = 0; s < 3 * kWallSlots; ++s)
         wall_history_out[3 * kWallSlots * i + s] = wall_history_in[3 * kWallSlots * from + s];
       wall_mask_out[i] = wall_mask_in[from];
+    }
+    if (wall_key_in)  // nullptr unless a mesh's walls keep keyed history
       for (int s = 0; s < kWallSlots; ++s)
         wall_key_out[kWallSlots * i + s] = wall_key_in[kWallSlots * from + s];
-    }
   }
 };
 
@@ -266,7 +267,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
   }
 
   void restore(const StateArrays& in) override {
-    const EngineCheckpoint c = from_arrays(in, count_, variant_.history);
+    const EngineCheckpoint c = from_arrays(in, count_, variant_.history, this->keyed_history());
     this->restore_grid(c);
     size_neighbour_arrays();
     State& s = state_[current_];
@@ -326,7 +327,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
       h.neighbour_mask.resize(n);
       h.wall.resize(variant_.history ? 3 * kWallSlots * n : 0);
       h.wall_mask.resize(n);
-      h.wall_key.resize(variant_.history ? kWallSlots * n : 0);
+      h.wall_key.resize(this->keyed_history() ? kWallSlots * n : 0);
     }
     for (auto* a : {&neighbours_, &partner_id_, &partner_id_old_, &reverse_}) a->resize(slots);
     neighbour_count_.resize(n);
@@ -403,6 +404,8 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
       g.wall_history_out = hnew.wall.data();
       g.wall_mask_in = hin.wall_mask.data();
       g.wall_mask_out = hnew.wall_mask.data();
+    }
+    if (this->keyed_history()) {
       g.wall_key_in = hin.wall_key.data();
       g.wall_key_out = hnew.wall_key.data();
     }

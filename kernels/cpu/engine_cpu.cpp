@@ -189,7 +189,7 @@ class CpuEngine final : public EngineCore<CpuArray> {
       h.neighbour_mask.assign(n, 0);
       h.wall.assign(variant_.history ? 3 * kWallSlots * n : 0, 0.0);
       h.wall_mask.assign(n, 0);
-      h.wall_key.assign(variant_.history ? kWallSlots * n : 0, 0);
+      h.wall_key.assign(keyed_history() ? kWallSlots * n : 0, 0);
     }
     neighbours_.clear();
     partner_id_.clear();
@@ -240,7 +240,7 @@ class CpuEngine final : public EngineCore<CpuArray> {
 
   // The lists from the checkpoint's layout to the compact one.
   void restore(const StateArrays& in) override {
-    EngineCheckpoint c = from_arrays(in, count_, variant_.history);
+    EngineCheckpoint c = from_arrays(in, count_, variant_.history, keyed_history());
     set_particles(config_.particles);  // clears the lists
     restore_grid(c);
     State& s = state_[current_];

@@ -381,7 +381,7 @@ TEST_CASE(
 TEST_CASE("checkpoints move between the cpu and gpu engines mid-run") {
   for (const GpuEngine& gpu : gpu_engines()) {
     CAPTURE(gpu.name);
-    for (const SceneSpec& spec : {kScenes[0], kScenes[1]}) {
+    for (const SceneSpec& spec : {kScenes[0], kScenes[1], kScenes[4]}) {  // the mesh: keyed walls
       const EngineConfig config = make_scene(spec, Backend::cpu);
       auto cpu = make_engine(config);
       auto other = gpu.make(config);

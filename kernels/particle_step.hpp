@@ -286,18 +286,19 @@ PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribut
     double gap[kWallSlots];
     Vec3 normal[kWallSlots];
     int n = 0;
-    bool held = Shape::walls(
+    bool slots_held = true;  // more touched features than slots: the run stops
+    const bool candidates_held = Shape::walls(
         local, radius, a.geometry,
         [&](int k, double g, Vec3 local_normal) {
           if (n == kWallSlots) {
-            held = false;
+            slots_held = false;
             return;
           }
           key[n] = k, gap[n] = g, normal[n] = local_normal, slot[n] = -1;
           ++n;
         },
         escaped);
-    if (!held) sum.flags |= kWallOverflow;
+    if (!slots_held || !candidates_held) sum.flags |= kWallOverflow;
     unsigned used = 0;
     if constexpr (history) {
       const std::int32_t* before = a.history.wall_key_in + i * kWallSlots;

@@ -138,6 +138,18 @@ struct MeshShape {
       escaped(1e300);
       return true;
     }
+    const int first = m.bin_start[bin], end = m.bin_start[bin + 1];
+    if (end - first == 1 && m.bin_triangle[first] < 0) {  // inside a flat face: its plane alone
+      const int t = ~m.bin_triangle[first];
+      const double* T = m.triangle + kTriangleDoubles * t;
+      const Vec3 inward{T[9], T[10], T[11]};
+      const double plane = dot(local - Vec3{T[0], T[1], T[2]}, inward);
+      if (fabs(plane) < r) {
+        wall(m.key[kTriangleInts * t], plane, inward);
+        escaped(-plane);
+      }
+      return true;
+    }
     enum Kind { kFace, kEdge, kCorner };
     int key[kCandidates], kind[kCandidates], triangle[kCandidates], feature[kCandidates];
     double gap[kCandidates];
@@ -146,7 +158,7 @@ struct MeshShape {
     bool mixed[kCandidates];
     int n = 0;
     bool complete = true;
-    for (int k = m.bin_start[bin]; k < m.bin_start[bin + 1]; ++k) {
+    for (int k = first; k < end; ++k) {
       const int entry = m.bin_triangle[k];
       const bool plane_only = entry < 0;  // a flat surface whose face is the closest feature
       const int t = plane_only ? ~entry : entry;

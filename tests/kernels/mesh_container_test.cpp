@@ -194,3 +194,42 @@ TEST_CASE("a surface wrapped round a sphere: facets that cancel leave the deepes
   const double facet = std::atan2(-normal.y, -normal.x) / (2 * kPi / 64) - 0.5;
   CHECK(std::fabs(facet - std::round(facet)) < 1e-6);
 }
+
+TEST_CASE("a ball seated in a funnel of more faces than its history slots stops the run") {
+  // A ball dropped on the axis of a pyramid-bottomed funnel seats against every sloped face at
+  // once (each its own surface: neighbours bend by more than the curvature). With 5 faces it
+  // rests; with 8 it touches more features than its kWallSlots histories hold, with 20 more
+  // than walls() gathers (MeshShape::kCandidates), and the step says so (the run stops with
+  // the kWallOverflow message) instead of dropping contacts.
+  static_assert(kWallSlots == 6 && MeshShape::kCandidates == 16, "5 fit, 8 and 20 do not");
+  const double r = 0.02;
+  const ContactParams contact = hertz_contact(kSteelYoung, kSteelPoisson, 0.3, 0);
+  const double mass = ball_mass(kRadius, kSteelDensity);
+  const double dt = hertz_contact_time(mass, kRadius, contact.hertz_modulus_pw, 0.5) / 50;
+  for (const int sides : {5, 8, 20}) {
+    CAPTURE(sides);
+    ContainerSpec spec;
+    const std::string path = stl_files::ascii(stl_files::funnel(r, 2 * r, r, sides), "funnel.stl");
+    spec.mesh = load_mesh(path, 1.0, kDefaultCurvature);
+    std::filesystem::remove(path);
+    REQUIRE(spec.mesh->regions == 2 * sides + 1);  // prism faces, funnel faces, the top
+    EngineConfig c =
+        steel_box({r, r, r}, NormalModel::hertz, TangentialModel::history, contact, dt);
+    c.shape = WallShape::mesh;
+    c.geometry = MeshShape::geometry(spec);
+    c.gravity = Vec3{0, 0, -9.81};
+    add_particle(c, kRadius, {0, 0, 0.5 * r}, {});
+    auto engine = make_engine(c);
+    int flags = 0;
+    const int steps = static_cast<int>(0.15 / dt);  // falls ~10 mm in 45 ms, then settles
+    for (int n = 0; n < steps && !flags; ++n) flags = step(*engine, dt).flags;
+    if (sides == 5) {
+      CHECK(flags == 0);
+      const ParticleState p = engine->particles()[0];
+      CHECK(norm(p.velocity) < 1e-3);  // at rest in the funnel's tip
+      CHECK(p.position.z < 0);
+    } else {
+      CHECK(flags == kWallOverflow);
+    }
+  }
+}

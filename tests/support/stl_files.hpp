@@ -132,4 +132,23 @@ inline std::vector<Triangle> prism(const std::vector<Vec3>& outline, double z0, 
   return t;
 }
 
+// A funnel: a regular `sides`-gon prism of circumradius r from z = 0 to z = h over a pyramid
+// with its apex at z = -depth on the axis.
+inline std::vector<Triangle> funnel(double r, double h, double depth, int sides) {
+  auto rim = [&](int k, double z) {
+    const double a = 2 * kPi * (k % sides) / sides;
+    return Vec3{r * std::cos(a), r * std::sin(a), z};
+  };
+  const Vec3 top{0, 0, h}, apex{0, 0, -depth};
+  std::vector<Triangle> t;
+  for (int k = 0; k < sides; ++k) {
+    const Vec3 a = rim(k, 0), b = rim(k + 1, 0), c = rim(k + 1, h), d = rim(k, h);
+    t.push_back({a, b, c});
+    t.push_back({a, c, d});
+    t.push_back({d, c, top});
+    t.push_back({b, a, apex});
+  }
+  return t;
+}
+
 }  // namespace pdsim::stl_files

@@ -28,7 +28,6 @@ import argparse
 import datetime
 import math
 import os
-import resource
 import shlex
 import shutil
 import subprocess
@@ -149,14 +148,18 @@ def run_deck(pdsim, workdir, name, text):
     out = os.path.join(workdir, name + ".h5")
     with open(deck, "w", encoding="utf-8") as f:
         f.write(text)
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    proc = subprocess.run([pdsim, "run", deck, "--quiet", "--threads", "1", "--force", "-o", out],
-                          capture_output=True, text=True, check=False)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    # The process's own CPU time (os.wait4), so that runs may go side by side in threads.
+    with tempfile.TemporaryFile("w+", encoding="utf-8") as log:
+        proc = subprocess.Popen([pdsim, "run", deck, "--quiet", "--threads", "1", "--force", "-o",
+                                 out], stdout=log, stderr=subprocess.STDOUT)
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        log.seek(0)
+        output = log.read()
+    cpu = usage.ru_utime + usage.ru_stime
     run = {"name": name, "rc": proc.returncode, "cpu_s": cpu, "data": None, "error": None}
     if proc.returncode != 0:
-        message = (proc.stderr or proc.stdout).strip().splitlines()
+        message = output.strip().splitlines()
         run["error"] = message[-1] if message else ""
         print(f"  {name}: exit {proc.returncode}: {run['error']}", file=sys.stderr)
         return run

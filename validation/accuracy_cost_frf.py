@@ -1,0 +1,297 @@
+#!/usr/bin/python3
+"""Accuracy against cost on the Saeki FRF: one speed lever at a time against a reference.
+
+Usage: validation/accuracy_cost_frf.py [--pdsim build/pdsim] [--levers all|name,name]
+                                       [--jobs 2] [--band 14,16,0.5] [-o MD] [--keep]
+       validation/accuracy_cost_frf.py --from-json RESULTS.json [-o MD]
+       validation/accuracy_cost_frf.py --merge RESULTS.json --levers ... (runs only the new ones)
+
+The scene is examples/saeki_250.toml (250 steel spheres, Hertz + Mindlin history, gravity,
+stepped sine of 1 N, predicted starts, the ensemble FRF: two fills a point, up to four where
+they disagree) over --band (start, stop, step in Hz; default 14-16 Hz in 0.5 Hz, where the
+example's resonance lies), each point capped at 300 periods a fill (settle.max_periods) so that
+a lever costs a bounded time. The reference row is that deck as it stands (young 2e9 Pa,
+dt_safety 0.15, interleaved coupling every step, tolerance 0.02); every other row changes one
+lever (LEVERS below). Per row: the peak of the result points (the /frf attributes
+peak_amplitude +- its 95 % interval, peak_frequency), the result points, the RMS over the
+points that are results in both runs of (amplitude - reference) / reference peak, how many of
+those differences lie within the two 95 % intervals combined (a difference inside them is not
+resolved), the wall time (/meta wall_time_s), the CPU time of the pdsim process and the
+speed-up against the reference. Runs go --jobs at a time, each with --threads 1 (wall times of
+concurrent runs share the machine: the CPU times compare). Written to
+validation/results/accuracy_cost_frf.md with the date, machine, version and command, the runs'
+figures beside it (.json, which --from-json reads back to redo the table and plot without
+running) and the Pareto plot (.png: the curve's error against CPU time, and the peak with its
+interval against CPU time).
+"""
+import argparse
+import concurrent.futures
+import datetime
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+import accuracy_cost  # noqa: E402
+DECK = os.path.join(HERE, "..", "examples", "saeki_250.toml")
+
+# name -> (what it changes, {table: {key: value}} overriding the reference deck)
+LEVERS = {
+    "reference": ("the deck as it stands (young 2e9 Pa, dt_safety 0.15, interleaved, tol. 0.02)",
+                  {}),
+    "young 2e8": ("contacts 10x softer (dt follows the Rayleigh time)",
+                  {"contact": {"young": 2.0e8}}),
+    "dt_safety 0.3": ("time step 2x", {"solver": {"dt_safety": 0.3}}),
+    "loose every 5": ("loose coupling, one exchange every 5 steps",
+                      {"coupling": {"scheme": "loose", "every": 5}}),
+    "tolerance 0.05": ("steady-state tolerance 0.05 (5 % half-width)",
+                       {"settle": {"tolerance": 0.05}}),
+    # k matches Hertz's contact time at 0.1 m/s (about the bed's speeds at resonance):
+    # t = 2.87 (m*^2 / (R* E*^2 v))^(1/5) = 1.53e-4 s for these spheres, k = m* (pi / t)^2.
+    "linear": ("linear spring-dashpot, k = 1.07e5 N/m (Hertz's contact time at 0.1 m/s)",
+               {"contact": {"model": "linear", "stiffness": 1.07e5}}),
+    "linear dt_safety 0.1": ("as linear, dt 0.1 of its contact time (5x the default 0.02)",
+                              {"contact": {"model": "linear", "stiffness": 1.07e5},
+                               "solver": {"dt_safety": 0.1}}),
+    "no friction history": ("directional Coulomb friction instead of Mindlin history",
+                            {"contact": {"tangential": "directional"}}),
+    "other fills": ("the reference with other fills (seed 101): the metrics' noise floor",
+                    {"particles": {"seed": 101}}),
+    "young 2e10": ("contacts 10x stiffer (a finer reference: about 3x the time)",
+                   {"contact": {"young": 2.0e10}}),
+}
+
+
+def deck_text(band, overrides):
+    """examples/saeki_250.toml with the band, the periods cap and the lever's keys."""
+    import tomllib  # Python 3.11+
+    with open(DECK, "rb") as f:
+        deck = tomllib.load(f)
+    start, stop, step = band
+    x = deck["excitation"]
+    x["frequencies"] = {"start": start, "stop": stop, "step": step}
+    x["settle"] = dict(x.get("settle", {}), max_periods=300)
+    for table, keys in overrides.items():
+        target = {"settle": x["settle"], "particles": deck["damper"][0]["particles"]}.get(table)
+        (target if target is not None else deck.setdefault(table, {})).update(keys)
+    deck.pop("output", None)
+    return dumps(deck)
+
+
+def dumps(value, prefix=""):
+    """A small TOML writer for the deck's tables, arrays of tables and inline tables."""
+    def scalar(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return '"' + v + '"'
+        if isinstance(v, list):
+            return "[" + ", ".join(scalar(e) for e in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {scalar(e)}" for k, e in v.items()) + " }"
+        return repr(v)
+    lines = [f"{k} = {scalar(v)}" for k, v in value.items()
+             if not isinstance(v, dict) and not (isinstance(v, list) and v and
+                                                 isinstance(v[0], dict))]
+    for k, v in value.items():
+        if isinstance(v, dict):
+            lines += ["", f"[{prefix}{k}]", dumps(v, prefix + k + ".")]
+        elif isinstance(v, list) and v and isinstance(v[0], dict):
+            for e in v:
+                lines += ["", f"[[{prefix}{k}]]", dumps(e, prefix + k + ".")]
+    return "\n".join(lines)
+
+
+def run(pdsim, workdir, name, text):
+    """One run (accuracy_cost.run_deck); (name, the figures the table and plot read)."""
+    done = accuracy_cost.run_deck(pdsim, workdir, name.replace(" ", "_"), text)
+    result = {"rc": done["rc"], "cpu_s": done["cpu_s"], "error": done["error"]}
+    if done["data"] is not None:
+        data = done["data"]
+        result.update({k: data["frf/" + k] for k in ("frequency", "amplitude", "amplitude_ci",
+                                                     "result", "realisations", "periods")})
+        result.update({"fills_" + k: data["frf/fills/" + k]
+                       for k in ("frequency", "amplitude", "periods")})
+        result.update(wall_s=data["wall_s"], dt=data["dt"])
+    return name, result
+
+
+def curve_peak(r):
+    """The highest point mean of a run (result or not): (index, amplitude, interval)."""
+    k = int(np.argmax(r["amplitude"]))
+    return k, float(r["amplitude"][k]), float(r["amplitude_ci"][k])
+
+
+def curve_error(r, ref):
+    """RMS over every point of (mean - reference mean) / reference peak, and how many of those
+    differences lie within the two 95 % intervals combined (not resolved)."""
+    d = np.asarray(r["amplitude"]) - np.asarray(ref["amplitude"])
+    rms = float(np.sqrt(np.mean(d**2))) / curve_peak(ref)[1]
+    within = np.abs(d) <= np.hypot(r["amplitude_ci"], ref["amplitude_ci"])
+    return rms, int(within.sum())
+
+
+def row(name, r, ref):
+    what = LEVERS[name][0]
+    if r["rc"] != 0:
+        return [name, what] + ["-"] * 4 + [f"failed (exit {r['rc']}): {r.get('error', '')}"] + \
+            ["-"] * 3
+    k, peak, ci = curve_peak(r)
+    flag = "" if r["result"][k] > 0 else " (not a result)"
+    cells = [name, what, f"{r['dt']:.3g}",
+             f"{1e3 * peak:.3f} ± {1e3 * ci:.3f} mm at {r['frequency'][k]:g} Hz{flag}",
+             f"{int(np.sum(np.asarray(r['result']) > 0))} / {len(r['result'])}"]
+    if name == "reference" or ref is None or ref["rc"] != 0:
+        cells += ["reference" if name == "reference" else "-", "-"]
+    else:
+        rms, within = curve_error(r, ref)
+        cells += [f"{100 * rms:.1f} %", f"{within} / {len(r['result'])}"]
+    speedup = "-" if ref is None or ref["rc"] != 0 else f"{ref['cpu_s'] / r['cpu_s']:.2f}"
+    return cells + [f"{r['wall_s']:.0f}", f"{r['cpu_s']:.0f}", speedup]
+
+
+def plot(results, names, path):
+    """The Pareto plot: RMS difference and peak against CPU time, one point per lever."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ref = results.get("reference")
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2))
+    for n in names:
+        r = results[n]
+        if r["rc"] != 0:
+            continue
+        if n != "reference" and ref is not None and ref["rc"] == 0:
+            rms = 100 * curve_error(r, ref)[0]
+            left.plot(r["cpu_s"], rms, "o")
+            left.annotate(n, (r["cpu_s"], rms), textcoords="offset points", xytext=(4, 4),
+                          fontsize=8)
+        k, peak, ci = curve_peak(r)
+        right.errorbar(r["cpu_s"], 1e3 * peak, yerr=1e3 * ci, fmt="o", capsize=3)
+        right.annotate(f"{n} ({r['frequency'][k]:g} Hz)", (r["cpu_s"], 1e3 * peak),
+                       textcoords="offset points", xytext=(4, 4), fontsize=8)
+    left.set(xscale="log", xlabel="CPU time (s)", ylabel="RMS diff. / reference peak (%)",
+             title="FRF error against cost")
+    right.set(xscale="log", xlabel="CPU time (s)", ylabel="peak amplitude (mm), 95 % CI",
+              title="highest point of the FRF (mean over fills)")
+    for axis in (left, right):
+        axis.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--pdsim", default="build/pdsim")
+    parser.add_argument("--levers", default="all", help="comma-separated names, or all")
+    parser.add_argument("--jobs", type=int, default=2, help="runs at a time")
+    parser.add_argument("--band", default="14,16,0.5", help="start,stop,step in Hz")
+    parser.add_argument("-o", "--output",
+                        default=os.path.join(HERE, "results", "accuracy_cost_frf.md"))
+    parser.add_argument("--keep", action="store_true", help="keep decks, logs and HDF5 files")
+    parser.add_argument("--from-json", help="redo the table and plot from a run's .json")
+    parser.add_argument("--merge", help="a run's .json: keep its runs, run only the levers it "
+                        "lacks, and write them all")
+    args = parser.parse_args()
+    stem = os.path.splitext(args.output)[0]
+    if args.from_json:
+        with open(args.from_json, encoding="utf-8") as f:
+            saved = json.load(f)
+        write(saved["head"], saved["names"], saved["results"], args.output, stem)
+        return
+    names = list(LEVERS) if args.levers == "all" else \
+        ["reference"] + [n.strip() for n in args.levers.split(",") if n.strip() != "reference"]
+    unknown = [n for n in names if n not in LEVERS]
+    if unknown:
+        sys.exit(f"accuracy_cost_frf.py: unknown levers {unknown}; expected some of "
+                 f"{', '.join(LEVERS)}")
+    band = tuple(float(v) for v in args.band.split(","))
+    if len(band) != 3 or not band[0] < band[1] or band[2] <= 0:
+        sys.exit(f"accuracy_cost_frf.py: --band {args.band}: expected start,stop,step in Hz")
+    if not os.access(args.pdsim, os.X_OK):
+        sys.exit(f"accuracy_cost_frf.py: {args.pdsim} is not an executable; build pdsim or "
+                 "pass --pdsim")
+    saved = {"head": [], "names": [], "results": {}}
+    if args.merge:
+        with open(args.merge, encoding="utf-8") as f:
+            saved = json.load(f)
+        names = saved["names"] + [n for n in names if n not in saved["names"]]
+    workdir = tempfile.mkdtemp(prefix="pdsim_accuracy_frf_")
+    started = datetime.datetime.now()
+    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        futures = [pool.submit(run, args.pdsim, workdir, n, deck_text(band, LEVERS[n][1]))
+                   for n in names if n not in saved["results"]]
+        results = dict(saved["results"], **dict(f.result() for f in futures))
+    version = subprocess.run([args.pdsim, "--version"], capture_output=True, text=True,
+                             check=False).stdout.strip()
+    head = saved["head"] + [
+            f"- date: {started.isoformat(timespec='seconds')}, {args.jobs} runs at a time",
+            f"- machine: {os.cpu_count()} CPUs; load average at the start {load}",
+            f"- pdsim: {version}",
+            "- command: `" + shlex.join([sys.executable] + sys.argv) + "`",
+            f"- scene: examples/saeki_250.toml over {band[0]:g}-{band[1]:g} Hz in {band[2]:g} Hz,"
+            " at most 300 periods a fill; one lever a row (see `validation/accuracy_cost_frf.py`"
+            " --help)"]
+    results = {n: {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in r.items()}
+               for n, r in results.items()}
+    with open(stem + ".json", "w", encoding="utf-8") as f:
+        json.dump({"head": head, "names": names, "results": results}, f, indent=1)
+    write(head, names, results, args.output, stem)
+    if args.keep:
+        print(f"kept in {workdir}", file=sys.stderr)
+    else:
+        shutil.rmtree(workdir)
+
+
+def resolution(ref):
+    """What resolving a 3 % change of the reference's peak would take: fills at its spread."""
+    if ref is None or ref["rc"] != 0:
+        return ""
+    frequency = ref["frequency"][curve_peak(ref)[0]]
+    at = np.isclose(ref["fills_frequency"], frequency)
+    amplitude = ref["fills_amplitude"][at]
+    mean, sd = float(np.mean(amplitude)), float(np.std(amplitude, ddof=1))
+    needed = int(np.ceil((1.96 * sd / (0.03 * mean))**2))
+    per_period = ref["cpu_s"] / float(np.sum(ref["fills_periods"]))
+    cost = needed * float(np.mean(ref["fills_periods"][at])) * per_period
+    return (f"At the reference's highest point ({frequency:g} Hz) its {amplitude.size} fills"
+            f" read {1e3 * mean:.3f} mm with a standard deviation of {1e3 * sd:.3f} mm"
+            f" ({100 * sd / mean:.0f} %): the fills of one design differ by that much (the"
+            f" ensemble's spread, not noise that more periods remove). A 95 % interval of 3 % of"
+            f" the peak would take about {needed} fills at that point, about"
+            f" {cost / 3600:.1f} CPU hours at the reference's {per_period:.2f} CPU s a period;"
+            " the rows here, at 2-4 fills a point, resolve changes of the order of the"
+            " intervals shown.")
+
+
+def write(head, names, results, output, stem):
+    """The table (markdown, printed too) and the Pareto plot."""
+    results = {n: {k: np.array(v) if isinstance(v, list) else v for k, v in r.items()}
+               for n, r in results.items()}
+    ref = results.get("reference")
+    header = ["lever", "what it changes", "dt (s)", "highest point, mean ± 95 % CI",
+              "result points", "RMS diff. / ref. peak", "diffs within both 95 % CI", "wall (s)",
+              "CPU (s)", "speed-up (CPU)"]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(row(n, results[n], ref)) + " |" for n in names]
+    report = "\n".join(["# Accuracy against cost on the Saeki FRF", ""] + head +
+                        ["", "\n".join(lines), "", resolution(ref), "",
+                         f"![error and peak against CPU time]({os.path.basename(stem)}.png)", ""])
+    print(report)
+    with open(output, "w", encoding="utf-8") as f:
+        f.write(report)
+    plot(results, names, stem + ".png")
+    print(f"wrote {output} and {stem}.png", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

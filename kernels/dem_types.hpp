@@ -55,6 +55,11 @@ struct MeshView {
   std::int32_t nx = 0, ny = 0, nz = 0;
   const std::int32_t* bin_start = nullptr;  // nx ny nz + 1: bin b lists bin_triangle[start[b]..)
   const std::int32_t* bin_triangle = nullptr;
+  // The CPU engine's (none elsewhere): per particle, the entries of its bin within
+  // r (1 + kMemoSlack) of where it was, which serve its walls() calls while it stays in that bin
+  // within kMemoSlack r of there (kernels/shape_mesh.hpp).
+  std::int32_t* memo = nullptr;  // kMemoInts each: the bin, the count (-1: too many), entries
+  double* memo_at = nullptr;     // 4 each: where it was made (container frame) and the radius
 };
 
 struct MeshSurface;  // the host's mesh (kernels/shape_mesh.hpp)

@@ -314,9 +314,10 @@ class EngineCore : public DemEngine {
         max_neighbours_(sizes_.max_neighbours) {}
 
   // A mesh container's triangles and bins for these particles, in the backend's arrays:
-  // place(host vector, array) copies one there. Nothing for the other shapes.
+  // place(host vector, array) copies one there, and the particles' memos where `memo` (an
+  // engine that permutes them with the particles). Nothing for the other shapes.
   template <class Place>
-  void place_mesh(Place&& place) {
+  void place_mesh(Place&& place, bool memo = false) {
     if (config_.shape != WallShape::mesh) return;
     const MeshSurface& s = *config_.geometry.surface;
     const std::shared_ptr<const MeshBins> bins = mesh_bins(s, sizes_.r_max);
@@ -330,6 +331,12 @@ class EngineCore : public DemEngine {
     v.key = mesh_key_.data();
     v.bin_start = mesh_bin_start_.data();
     v.bin_triangle = mesh_bin_triangle_.data();
+    if (!memo) return;
+    const auto n = static_cast<std::size_t>(count_);
+    place(std::vector<std::int32_t>(kMemoInts * n, -1), mesh_memo_);  // bin -1: none made
+    place(std::vector<double>(4 * n), mesh_memo_at_);
+    v.memo = mesh_memo_.data();
+    v.memo_at = mesh_memo_at_.data();
   }
 
   // The particles' inverse masses and inertias, from their radii (one expression for both
@@ -457,7 +464,8 @@ class EngineCore : public DemEngine {
       slot_start_, reverse_start_;
   Array<std::uint32_t> incoming_;
   Array<double> mesh_triangle_;  // a mesh container's (place_mesh())
-  Array<std::int32_t> mesh_key_, mesh_bin_start_, mesh_bin_triangle_;
+  Array<std::int32_t> mesh_key_, mesh_bin_start_, mesh_bin_triangle_, mesh_memo_;
+  Array<double> mesh_memo_at_;
 };
 
 }  // namespace pdsim

@@ -297,7 +297,7 @@ PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribut
           key[n] = k, gap[n] = g, normal[n] = local_normal, slot[n] = -1;
           ++n;
         },
-        escaped);
+        escaped, i);
     if (!slots_held || !candidates_held) sum.flags |= kWallOverflow;
     unsigned used = 0;
     if constexpr (history) {

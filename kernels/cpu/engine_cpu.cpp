@@ -101,7 +101,7 @@ class CpuEngine final : public EngineCore<CpuArray> {
     id_.resize(n);
     std::iota(id_.begin(), id_.end(), 0);
     set_particles(c.particles);
-    place_mesh([](const auto& host, auto& array) { array = host; });
+    place_mesh([](const auto& host, auto& array) { array = host; }, true);
   }
 
   const StepTotals& compute(const ContainerKinematics& container, double dt) override {
@@ -322,6 +322,12 @@ class CpuEngine final : public EngineCore<CpuArray> {
     permute(radius_, order);
     permute(inv_mass_, order);
     permute(inv_inertia_, order);
+    if (!mesh_memo_.empty()) {  // the memos follow their particles
+      permute(mesh_memo_, order, kMemoInts, memo_scratch_);
+      permute(mesh_memo_at_, order, 4, memo_at_scratch_);
+      scene_args_.geometry.mesh.memo = mesh_memo_.data();
+      scene_args_.geometry.mesh.memo_at = mesh_memo_at_.data();
+    }
     History& hin = history_[history_current_];
     History& scratch = history_[history_current_ ^ 1];
     // Through the other history buffer: a scratch, or the back buffer that the next step
@@ -409,7 +415,9 @@ class CpuEngine final : public EngineCore<CpuArray> {
   std::unique_ptr<double[]> pair_load_;
   std::size_t pair_capacity_ = 0;  // slots pair_load_ holds
   std::vector<StepTotals> block_totals_;
-  std::vector<ContactBatch> batches_;  // one per thread
+  std::vector<ContactBatch> batches_;       // one per thread
+  std::vector<std::int32_t> memo_scratch_;  // permute()'s, for the mesh memos
+  std::vector<double> memo_at_scratch_;
   BlockShares pair_shares_, particle_shares_;
 };
 

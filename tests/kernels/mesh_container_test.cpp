@@ -4,8 +4,11 @@
 // restitution and contact time of the formulas.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <random>
+#include <vector>
 
 #include "io/stl_mesh.hpp"
 #include "kernels/engine.hpp"
@@ -232,4 +235,65 @@ TEST_CASE("a ball seated in a funnel of more faces than its history slots stops 
       CHECK(flags == kWallOverflow);
     }
   }
+}
+
+TEST_CASE(
+    "a particle's memo of the slivers of a cylinder finds the walls that its whole bin does") {
+  // 2,560 segments: side facets 0.03 radii wide, of which a memo holds a few of its bin's
+  // entries. A ball wanders along the side wall and round the rims, touching them and not, in
+  // steps of 0.002 radii (a memo lasts a few) and now and then a jump; walls() through the
+  // memo must give every feature, gap and normal that the scan of the whole bin gives.
+  const double r = 0.0025, radius = 0.028, h = 0.05;
+  const std::string path =
+      stl_files::binary(stl_files::cylinder(radius, h, 2560), "memo_cylinder.stl");
+  const auto surface = load_mesh(path, 1.0, kDefaultCurvature);
+  std::filesystem::remove(path);
+  const auto bins = mesh_bins(*surface, r);
+  ContainerGeometry whole;
+  whole.mesh = mesh_view(*surface, *bins);
+  std::vector<std::int32_t> memo(kMemoInts, -1);
+  std::vector<double> memo_at(4);
+  ContainerGeometry memoised = whole;
+  memoised.mesh.memo = memo.data();
+  memoised.mesh.memo_at = memo_at.data();
+  struct Touch {
+    int key;
+    double gap;
+    Vec3 normal;
+  };
+  auto walls = [&](Vec3 p, const ContainerGeometry& g, int particle) {
+    std::vector<Touch> t;
+    const bool held = MeshShape::walls(
+        p, r, g,
+        [&](int key, double gap, Vec3 n) {
+          t.push_back({key, gap, n});
+        },
+        [](double) {}, particle);
+    CHECK(held);
+    return t;
+  };
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> unit(-1, 1), chance(0, 1);
+  double rho = radius - r, angle = 0, z = -0.5 * h + r;
+  int calls = 0, touching = 0, replays = 0, mismatches = 0;
+  for (int k = 0; k < 20000; ++k) {
+    const double step = chance(random) < 0.01 ? 0.5 * r : 0.002 * r;
+    rho = std::clamp(rho + step * unit(random), radius - 1.1 * r, radius - 0.97 * r);
+    angle += step * unit(random) / rho;
+    z = std::clamp(z + step * unit(random), -0.5 * h + 0.95 * r, 0.5 * h - 0.95 * r);
+    const Vec3 p{rho * std::cos(angle), rho * std::sin(angle), z};
+    const double made_at = memo_at[0];
+    const std::vector<Touch> a = walls(p, whole, -1), b = walls(p, memoised, 0);
+    ++calls;
+    touching += a.empty() ? 0 : 1;
+    replays += memo_at[0] == made_at ? 1 : 0;
+    bool same = a.size() == b.size();
+    for (std::size_t c = 0; same && c < a.size(); ++c)
+      same = a[c].key == b[c].key && std::fabs(a[c].gap - b[c].gap) <= 1e-12 * r &&
+             norm(a[c].normal - b[c].normal) <= 1e-12;
+    mismatches += same ? 0 : 1;
+  }
+  CHECK(mismatches == 0);
+  CHECK(touching > calls / 4);  // the walk keeps touching the wall
+  CHECK(replays > calls / 2);   // and the memo served most calls
 }

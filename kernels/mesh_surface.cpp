@@ -55,7 +55,8 @@ void plane_entries(const MeshSurface& s, double reach, const MeshBins& b,
                                     static_cast<std::size_t>(b.ny)),
                k = static_cast<int>(bin / (static_cast<std::size_t>(b.nx) * b.ny));
     const Vec3 centre = b.origin + Vec3{(i + 0.5) * b.cell, (j + 0.5) * b.cell, (k + 0.5) * b.cell};
-    std::map<std::int32_t, std::int32_t> plane;  // a flat surface's triangle under the centre
+    std::map<std::int32_t, std::int32_t>
+        plane;  // a flat surface's triangle under the centre, or -1
     for (const std::int32_t t : list) {
       const std::int32_t r = s.key[kTriangleInts * static_cast<std::size_t>(t)];
       const auto u = static_cast<std::size_t>(t);
@@ -76,13 +77,18 @@ void plane_entries(const MeshSurface& s, double reach, const MeshBins& b,
           break;
         }
       }
-      if (clear) plane[r] = t;
+      // The foot is the surface's, whichever of its triangles found it: one boundary test a
+      // surface (testing each of a cap's 2,560 wedges near its rim cost 1.5 s of set-up).
+      plane[r] = clear ? t : -1;
     }
-    if (plane.empty()) continue;
     std::vector<std::int32_t> kept;
-    for (const std::int32_t t : list)
-      if (!plane.count(s.key[kTriangleInts * static_cast<std::size_t>(t)])) kept.push_back(t);
-    for (const auto& [r, t] : plane) kept.push_back(~t);
+    for (const std::int32_t t : list) {
+      const auto p = plane.find(s.key[kTriangleInts * static_cast<std::size_t>(t)]);
+      if (p == plane.end() || p->second < 0) kept.push_back(t);
+    }
+    if (kept.size() == list.size()) continue;
+    for (const auto& [r, t] : plane)
+      if (t >= 0) kept.push_back(~t);
     list = std::move(kept);
   }
 }

@@ -2,23 +2,23 @@
 """Accuracy against cost on the Saeki FRF: one speed lever at a time against a reference.
 
 Usage: validation/accuracy_cost_frf.py [--pdsim build/pdsim] [--levers all|name,name]
-                                       [--jobs 2] [--band 14,16,0.5] [-o MD] [--keep]
+                                       [--jobs 2] [--band 14,16,0.5] [--fills N] [-o MD] [--keep]
        validation/accuracy_cost_frf.py --from-json RESULTS.json [-o MD]
        validation/accuracy_cost_frf.py --merge RESULTS.json --levers ... (runs only the new ones)
 
 The scene is examples/saeki_250.toml (250 steel spheres, Hertz + Mindlin history, gravity,
 stepped sine of 1 N, predicted starts, the ensemble FRF: two fills a point, up to four where
-they disagree) over --band (start, stop, step in Hz; default 14-16 Hz in 0.5 Hz, where the
-example's resonance lies), each point capped at 300 periods a fill (settle.max_periods) so that
-a lever costs a bounded time. The reference row is that deck as it stands (young 2e9 Pa,
-dt_safety 0.15, interleaved coupling every step, tolerance 0.02); every other row changes one
-lever (LEVERS below). Per row: the peak of the result points (the /frf attributes
-peak_amplitude +- its 95 % interval, peak_frequency), the result points, the RMS over the
-points that are results in both runs of (amplitude - reference) / reference peak, how many of
-those differences lie within the two 95 % intervals combined (a difference inside them is not
-resolved), the wall time (/meta wall_time_s), the CPU time of the pdsim process and the
-speed-up against the reference. Runs go --jobs at a time, each with --threads 1 (wall times of
-concurrent runs share the machine: the CPU times compare). Written to
+they disagree; --fills N: N a point, every row) over --band (start, stop, step in Hz; default
+14-16 Hz in 0.5 Hz, where the example's resonance lies; start = stop: one frequency), each point
+capped at 300 periods a fill (settle.max_periods) so that a lever costs a bounded time. The
+reference row is that deck as it stands (young 2e9 Pa, dt_safety 0.15, interleaved coupling
+every step, tolerance 0.02); every other row changes one lever (LEVERS below). Per row: the peak
+of the result points (the /frf attributes peak_amplitude +- its 95 % interval, peak_frequency),
+the result points, the RMS over every point, result or not, of (mean - reference mean) /
+reference peak, how many of those differences lie within the two 95 % intervals combined (a
+difference inside them is not resolved), the wall time (/meta wall_time_s), the CPU time of the
+pdsim process and the speed-up against the reference. Runs go --jobs at a time, each with
+--threads 1 (wall times of concurrent runs share the machine: the CPU times compare). Written to
 validation/results/accuracy_cost_frf.md with the date, machine, version and command, the runs'
 figures beside it (.json, which --from-json reads back to redo the table and plot without
 running) and the Pareto plot (.png: the curve's error against CPU time, and the peak with its
@@ -69,8 +69,8 @@ LEVERS = {
 }
 
 
-def deck_text(band, overrides):
-    """examples/saeki_250.toml with the band, the periods cap and the lever's keys."""
+def deck_text(band, overrides, fills=None):
+    """examples/saeki_250.toml with the band, the periods cap, the fills and the lever's keys."""
     import tomllib  # Python 3.11+
     with open(DECK, "rb") as f:
         deck = tomllib.load(f)
@@ -78,6 +78,8 @@ def deck_text(band, overrides):
     x = deck["excitation"]
     x["frequencies"] = {"start": start, "stop": stop, "step": step}
     x["settle"] = dict(x.get("settle", {}), max_periods=300)
+    if fills:
+        x["settle"].update(realisations=fills, max_realisations=fills)
     for table, keys in overrides.items():
         target = {"settle": x["settle"], "particles": deck["damper"][0]["particles"]}.get(table)
         (target if target is not None else deck.setdefault(table, {})).update(keys)
@@ -194,6 +196,8 @@ def main():
     parser.add_argument("--levers", default="all", help="comma-separated names, or all")
     parser.add_argument("--jobs", type=int, default=2, help="runs at a time")
     parser.add_argument("--band", default="14,16,0.5", help="start,stop,step in Hz")
+    parser.add_argument("--fills", type=int, help="fills a point for every row (default: the "
+                        "deck's, two and up to four where they disagree)")
     parser.add_argument("-o", "--output",
                         default=os.path.join(HERE, "results", "accuracy_cost_frf.md"))
     parser.add_argument("--keep", action="store_true", help="keep decks, logs and HDF5 files")
@@ -213,8 +217,10 @@ def main():
     if unknown:
         sys.exit(f"accuracy_cost_frf.py: unknown levers {unknown}; expected some of "
                  f"{', '.join(LEVERS)}")
+    if args.fills is not None and args.fills < 1:
+        sys.exit(f"accuracy_cost_frf.py: --fills {args.fills}: expected at least 1")
     band = tuple(float(v) for v in args.band.split(","))
-    if len(band) != 3 or not band[0] < band[1] or band[2] <= 0:
+    if len(band) != 3 or not band[0] <= band[1] or band[2] <= 0:
         sys.exit(f"accuracy_cost_frf.py: --band {args.band}: expected start,stop,step in Hz")
     if not os.access(args.pdsim, os.X_OK):
         sys.exit(f"accuracy_cost_frf.py: {args.pdsim} is not an executable; build pdsim or "
@@ -228,7 +234,8 @@ def main():
     started = datetime.datetime.now()
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(run, args.pdsim, workdir, n, deck_text(band, LEVERS[n][1]))
+        futures = [pool.submit(run, args.pdsim, workdir, n,
+                               deck_text(band, LEVERS[n][1], args.fills))
                    for n in names if n not in saved["results"]]
         results = dict(saved["results"], **dict(f.result() for f in futures))
     version = subprocess.run([args.pdsim, "--version"], capture_output=True, text=True,
@@ -239,8 +246,8 @@ def main():
             f"- pdsim: {version}",
             "- command: `" + shlex.join([sys.executable] + sys.argv) + "`",
             f"- scene: examples/saeki_250.toml over {band[0]:g}-{band[1]:g} Hz in {band[2]:g} Hz,"
-            " at most 300 periods a fill; one lever a row (see `validation/accuracy_cost_frf.py`"
-            " --help)"]
+            " at most 300 periods a fill" + (f", {args.fills} fills a point" if args.fills else "")
+            + "; one lever a row (see `validation/accuracy_cost_frf.py` --help)"]
     results = {n: {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in r.items()}
                for n, r in results.items()}
     with open(stem + ".json", "w", encoding="utf-8") as f:

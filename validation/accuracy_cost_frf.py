@@ -240,13 +240,15 @@ def main():
         results = dict(saved["results"], **dict(f.result() for f in futures))
     version = subprocess.run([args.pdsim, "--version"], capture_output=True, text=True,
                              check=False).stdout.strip()
+    where = f"at {band[0]:g} Hz" if band[0] == band[1] else \
+        f"over {band[0]:g}-{band[1]:g} Hz in {band[2]:g} Hz"
     head = saved["head"] + [
             f"- date: {started.isoformat(timespec='seconds')}, {args.jobs} runs at a time",
             f"- machine: {os.cpu_count()} CPUs; load average at the start {load}",
             f"- pdsim: {version}",
             "- command: `" + shlex.join([sys.executable] + sys.argv) + "`",
-            f"- scene: examples/saeki_250.toml over {band[0]:g}-{band[1]:g} Hz in {band[2]:g} Hz,"
-            " at most 300 periods a fill" + (f", {args.fills} fills a point" if args.fills else "")
+            f"- scene: examples/saeki_250.toml {where}, at most 300 periods a fill"
+            + (f", {args.fills} fills a point" if args.fills else "")
             + "; one lever a row (see `validation/accuracy_cost_frf.py` --help)"]
     results = {n: {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in r.items()}
                for n, r in results.items()}
@@ -270,13 +272,15 @@ def resolution(ref):
     needed = int(np.ceil((1.96 * sd / (0.03 * mean))**2))
     per_period = ref["cpu_s"] / float(np.sum(ref["fills_periods"]))
     cost = needed * float(np.mean(ref["fills_periods"][at])) * per_period
+    low, high = int(np.min(ref["realisations"])), int(np.max(ref["realisations"]))
+    fills = f"{low}" if low == high else f"{low}-{high}"
     return (f"At the reference's highest point ({frequency:g} Hz) its {amplitude.size} fills"
             f" read {1e3 * mean:.3f} mm with a standard deviation of {1e3 * sd:.3f} mm"
             f" ({100 * sd / mean:.0f} %): the fills of one design differ by that much (the"
             f" ensemble's spread, not noise that more periods remove). A 95 % interval of 3 % of"
             f" the peak would take about {needed} fills at that point, about"
             f" {cost / 3600:.1f} CPU hours at the reference's {per_period:.2f} CPU s a period;"
-            " the rows here, at 2-4 fills a point, resolve changes of the order of the"
+            f" the rows here, at {fills} fills a point, resolve changes of the order of the"
             " intervals shown.")
 
 

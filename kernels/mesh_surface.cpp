@@ -55,8 +55,8 @@ void plane_entries(const MeshSurface& s, double reach, const MeshBins& b,
                                     static_cast<std::size_t>(b.ny)),
                k = static_cast<int>(bin / (static_cast<std::size_t>(b.nx) * b.ny));
     const Vec3 centre = b.origin + Vec3{(i + 0.5) * b.cell, (j + 0.5) * b.cell, (k + 0.5) * b.cell};
-    std::map<std::int32_t, std::int32_t>
-        plane;  // a flat surface's triangle under the centre, or -1
+    // Each flat surface's triangle under the centre, or -1 where the foot is near its boundary.
+    std::map<std::int32_t, std::int32_t> plane;
     for (const std::int32_t t : list) {
       const std::int32_t r = s.key[kTriangleInts * static_cast<std::size_t>(t)];
       const auto u = static_cast<std::size_t>(t);

@@ -441,23 +441,20 @@ def study_ledger(pdsim, workdir, realisations):
                 text = text.replace(old, new)
             name = f"ledger_{model}_{len(changes)}_{safety:g}"
             runs.append((safety, run_deck(pdsim, workdir, name, text)))
-        previous = None
-        for safety, run in runs:
+        worst = [None if r["data"] is None else
+                 float(np.max(np.abs(r["data"]["energy/imbalance"]))) /
+                 float(r["data"]["energy/work_in"][-1] - r["data"]["energy/work_in"][0])
+                 for _, r in runs]
+        for k, (safety, run) in enumerate(runs):
             cells = [f"{label}, dt_safety {safety:g}"] + cost_cells(run, runs[0][1])
-            if run["data"] is None:
+            if worst[k] is None:
                 rows.append(cells + ["-", "-"])
-                previous = None
                 continue
-            work = float(run["data"]["energy/work_in"][-1] - run["data"]["energy/work_in"][0])
-            worst = float(np.max(np.abs(run["data"]["energy/imbalance"]))) / work
-            order = "-" if previous is None else f"{math.log2(previous / worst):.2f}"
-            rows.append(cells + [f"{worst:.2e}", order])
-            previous = worst
-        ends = [r["data"] for _, r in (runs[0], runs[-1])]
-        if all(d is not None for d in ends):
-            worst = [float(np.max(np.abs(d["energy/imbalance"]))) /
-                     float(d["energy/work_in"][-1] - d["energy/work_in"][0]) for d in ends]
-            averages.append(f"{label} {math.log2(worst[0] / worst[1]) / (len(runs) - 1):.2f}")
+            order = "-" if k == 0 or worst[k - 1] is None else \
+                f"{math.log2(worst[k - 1] / worst[k]):.2f}"
+            rows.append(cells + [f"{worst[k]:.2e}", order])
+        if worst[0] is not None and worst[-1] is not None:
+            averages.append(f"{label} {math.log2(worst[0] / worst[-1]) / (len(runs) - 1):.2f}")
     return ("5. The step's own error (the energy ledger's force-driven sine: 24 spheres, 4 mm,"
             " on an SDOF at 15 Hz, 0.4 s, gravity; Hertz young 2e8 Pa, linear 2000 N/m;"
             " speed-ups against each series' largest dt)",

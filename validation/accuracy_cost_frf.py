@@ -144,7 +144,7 @@ def row(name, r, ref):
     what = LEVERS[name][0]
     if r["rc"] != 0:
         return [name, what] + ["-"] * 4 + [f"failed (exit {r['rc']}): {r.get('error', '')}"] + \
-            ["-"] * 3
+            ["-"] * 4
     k, peak, ci = curve_peak(r)
     flag = "" if r["result"][k] > 0 else " (not a result)"
     cells = [name, what, f"{r['dt']:.3g}",
@@ -156,7 +156,9 @@ def row(name, r, ref):
         rms, within = curve_error(r, ref)
         cells += [f"{100 * rms:.1f} %", f"{within} / {len(r['result'])}"]
     speedup = "-" if ref is None or ref["rc"] != 0 else f"{ref['cpu_s'] / r['cpu_s']:.2f}"
-    return cells + [f"{r['wall_s']:.0f}", f"{r['cpu_s']:.0f}", speedup]
+    # Per fill too: rows run with different fills (--merge at another --fills) compare there.
+    per_fill = r["cpu_s"] / float(np.sum(r["realisations"]))
+    return cells + [f"{r['wall_s']:.0f}", f"{r['cpu_s']:.0f}", f"{per_fill:.0f}", speedup]
 
 
 def plot(results, names, path):
@@ -291,7 +293,7 @@ def write(head, names, results, output, stem):
     ref = results.get("reference")
     header = ["lever", "what it changes", "dt (s)", "highest point, mean ± 95 % CI",
               "result points", "RMS diff. / ref. peak", "diffs within both 95 % CI", "wall (s)",
-              "CPU (s)", "speed-up (CPU)"]
+              "CPU (s)", "CPU s a fill", "speed-up (CPU)"]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(row(n, results[n], ref)) + " |" for n in names]
     report = "\n".join(["# Accuracy against cost on the Saeki FRF", ""] + head +

@@ -5,6 +5,7 @@ Usage: validation/accuracy_cost_frf.py [--pdsim build/pdsim] [--levers all|name,
                                        [--jobs 2] [--band 14,16,0.5] [--fills N] [-o MD] [--keep]
        validation/accuracy_cost_frf.py --from-json RESULTS.json [-o MD]
        validation/accuracy_cost_frf.py --merge RESULTS.json --levers ... (runs only the new ones)
+       validation/accuracy_cost_frf.py --merge RESULTS.json --levers ... --more-fills N
 
 The scene is examples/saeki_250.toml (250 steel spheres, Hertz + Mindlin history, gravity,
 stepped sine of 1 N, predicted starts, the ensemble FRF: two fills a point, up to four where
@@ -22,7 +23,9 @@ pdsim process and the speed-up against the reference. Runs go --jobs at a time, 
 validation/results/accuracy_cost_frf.md with the date, machine, version and command, the runs'
 figures beside it (.json, which --from-json reads back to redo the table and plot without
 running) and the Pareto plot (.png: the curve's error against CPU time, and the peak with its
-interval against CPU time).
+interval against CPU time). --more-fills N runs N more fills of each named lever of a --merge
+run (fill seeds after the ones it ran) and pools them with its fills point by point: the mean
+over every fill with its Student-t 95 % interval, as the engine gives an ensemble of fills.
 """
 import argparse
 import concurrent.futures
@@ -67,6 +70,13 @@ LEVERS = {
     "young 2e10": ("contacts 10x stiffer (a finer reference: about 3x the time)",
                    {"contact": {"young": 2.0e10}}),
 }
+
+
+def deck_seed():
+    """The example deck's fill seed (its fills are seeds seed, seed + 1, ...)."""
+    import tomllib  # Python 3.11+
+    with open(DECK, "rb") as f:
+        return tomllib.load(f)["damper"][0]["particles"]["seed"]
 
 
 def deck_text(band, overrides, fills=None):
@@ -140,6 +150,25 @@ def curve_error(r, ref):
     return rms, int(within.sum())
 
 
+def pooled(old, new):
+    """Two runs of one lever on other fills as one: per point the mean over every fill with its
+    Student-t 95 % interval (a point's result: 0 unless both runs had one)."""
+    from scipy import stats
+    both = {k: np.concatenate([np.asarray(old[k]), np.asarray(new[k])])
+            for k in ("fills_frequency", "fills_amplitude", "fills_periods")}
+    r = dict(old, **both, cpu_s=old["cpu_s"] + new["cpu_s"], wall_s=old["wall_s"] + new["wall_s"])
+    r.update(amplitude=[], amplitude_ci=[], realisations=[], periods=[],
+             result=[min(a, b) for a, b in zip(old["result"], new["result"])])
+    for f in old["frequency"]:
+        at = np.isclose(both["fills_frequency"], f)
+        a, n = both["fills_amplitude"][at], int(np.sum(at))
+        r["amplitude"].append(float(np.mean(a)))
+        r["amplitude_ci"].append(float(stats.t.ppf(0.975, n - 1) * np.std(a, ddof=1) / n**0.5))
+        r["realisations"].append(n)
+        r["periods"].append(int(np.max(both["fills_periods"][at])))
+    return r
+
+
 def row(name, r, ref):
     what = LEVERS[name][0]
     if r["rc"] != 0:
@@ -202,6 +231,8 @@ def main():
                         "deck's, two and up to four where they disagree)")
     parser.add_argument("-o", "--output",
                         default=os.path.join(HERE, "results", "accuracy_cost_frf.md"))
+    parser.add_argument("--more-fills", type=int, help="with --merge: N more fills of each "
+                        "named lever, pooled with its saved ones")
     parser.add_argument("--keep", action="store_true", help="keep decks, logs and HDF5 files")
     parser.add_argument("--from-json", help="redo the table and plot from a run's .json")
     parser.add_argument("--merge", help="a run's .json: keep its runs, run only the levers it "
@@ -219,27 +250,49 @@ def main():
     if unknown:
         sys.exit(f"accuracy_cost_frf.py: unknown levers {unknown}; expected some of "
                  f"{', '.join(LEVERS)}")
-    if args.fills is not None and args.fills < 1:
-        sys.exit(f"accuracy_cost_frf.py: --fills {args.fills}: expected at least 1")
+    for option, value in (("--fills", args.fills), ("--more-fills", args.more_fills)):
+        if value is not None and value < 1:
+            sys.exit(f"accuracy_cost_frf.py: {option} {value}: expected at least 1")
+    if args.more_fills and not args.merge:
+        sys.exit("accuracy_cost_frf.py: --more-fills needs --merge RESULTS.json (the fills to "
+                 "add to)")
     band = tuple(float(v) for v in args.band.split(","))
     if len(band) != 3 or not band[0] <= band[1] or band[2] <= 0:
         sys.exit(f"accuracy_cost_frf.py: --band {args.band}: expected start,stop,step in Hz")
     if not os.access(args.pdsim, os.X_OK):
         sys.exit(f"accuracy_cost_frf.py: {args.pdsim} is not an executable; build pdsim or "
                  "pass --pdsim")
-    saved = {"head": [], "names": [], "results": {}}
+    saved, more = {"head": [], "names": [], "results": {}}, []
     if args.merge:
         with open(args.merge, encoding="utf-8") as f:
             saved = json.load(f)
+        more = [n for n in names if n in saved["results"]] if args.more_fills else []
         names = saved["names"] + [n for n in names if n not in saved["names"]]
+    decks = {n: deck_text(band, LEVERS[n][1], args.fills) for n in names
+             if n not in saved["results"]}
+    for n in more:
+        old = saved["results"][n]
+        points = np.arange(band[0], band[1] + band[2] / 2, band[2])
+        if old["rc"] != 0 or len(old["frequency"]) != len(points) or \
+                not np.allclose(old["frequency"], points):
+            sys.exit(f"accuracy_cost_frf.py: --more-fills: {args.merge}'s '{n}' did not run "
+                     f"--band {args.band}; more fills must go to the points it ran")
+        # The next fill seeds: the lever's seed (the deck's unless it sets one) + fills it ran.
+        first = LEVERS[n][1].get("particles", {}).get("seed", deck_seed())
+        overrides = {**LEVERS[n][1], "particles": {"seed": first + max(old["realisations"])}}
+        decks[n] = deck_text(band, overrides, args.more_fills)
     workdir = tempfile.mkdtemp(prefix="pdsim_accuracy_frf_")
     started = datetime.datetime.now()
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(run, args.pdsim, workdir, n,
-                               deck_text(band, LEVERS[n][1], args.fills))
-                   for n in names if n not in saved["results"]]
-        results = dict(saved["results"], **dict(f.result() for f in futures))
+        futures = [pool.submit(run, args.pdsim, workdir, n, text) for n, text in decks.items()]
+        new = dict(f.result() for f in futures)
+    results = dict(saved["results"])
+    for n, r in new.items():
+        if n in more and r["rc"] != 0:
+            print(f"  {n}: the more fills failed; its saved fills stand alone", file=sys.stderr)
+        else:
+            results[n] = pooled(results[n], r) if n in more else r
     version = subprocess.run([args.pdsim, "--version"], capture_output=True, text=True,
                              check=False).stdout.strip()
     where = f"at {band[0]:g} Hz" if band[0] == band[1] else \
@@ -251,6 +304,7 @@ def main():
             "- command: `" + shlex.join([sys.executable] + sys.argv) + "`",
             f"- scene: examples/saeki_250.toml {where}, at most 300 periods a fill"
             + (f", {args.fills} fills a point" if args.fills else "")
+            + (f", {args.more_fills} more fills of {', '.join(decks)}" if args.more_fills else "")
             + "; one lever a row (see `validation/accuracy_cost_frf.py` --help)"]
     results = {n: {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in r.items()}
                for n, r in results.items()}

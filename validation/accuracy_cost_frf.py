@@ -169,52 +169,98 @@ def pooled(old, new):
     return r
 
 
+def at_reference_peak(r, ref):
+    """(mean - reference mean) / reference mean at the reference's highest point, and the 95 %
+    half-width of that difference (the two intervals combined); None where r lacks the point."""
+    k, peak, ci = curve_peak(ref)
+    at = np.flatnonzero(np.isclose(r["frequency"], ref["frequency"][k]))
+    if at.size == 0:
+        return None
+    j = int(at[0])
+    return (r["amplitude"][j] - peak) / peak, float(np.hypot(r["amplitude_ci"][j], ci)) / peak
+
+
+def cpu_per_fill(r):
+    """CPU s a fill a point: comparable between rows run with different fills."""
+    return r["cpu_s"] / float(np.sum(r["realisations"]))
+
+
 def row(name, r, ref):
     what = LEVERS[name][0]
     if r["rc"] != 0:
-        return [name, what] + ["-"] * 4 + [f"failed (exit {r['rc']}): {r.get('error', '')}"] + \
+        return [name, what] + ["-"] * 5 + [f"failed (exit {r['rc']}): {r.get('error', '')}"] + \
             ["-"] * 4
     k, peak, ci = curve_peak(r)
     flag = "" if r["result"][k] > 0 else " (not a result)"
+    fills = int(np.sum(np.isclose(r["fills_frequency"], r["frequency"][k])))
     cells = [name, what, f"{r['dt']:.3g}",
-             f"{1e3 * peak:.3f} ± {1e3 * ci:.3f} mm at {r['frequency'][k]:g} Hz{flag}",
-             f"{int(np.sum(np.asarray(r['result']) > 0))} / {len(r['result'])}"]
+             f"{1e3 * peak:.3f} ± {1e3 * ci:.3f} mm at {r['frequency'][k]:g} Hz, {fills} fills"
+             f"{flag}", f"{int(np.sum(np.asarray(r['result']) > 0))} / {len(r['result'])}"]
     if name == "reference" or ref is None or ref["rc"] != 0:
-        cells += ["reference" if name == "reference" else "-", "-"]
+        cells += ["reference" if name == "reference" else "-", "-", "-"]
     else:
         rms, within = curve_error(r, ref)
-        cells += [f"{100 * rms:.1f} %", f"{within} / {len(r['result'])}"]
-    speedup = "-" if ref is None or ref["rc"] != 0 else f"{ref['cpu_s'] / r['cpu_s']:.2f}"
-    # Per fill too: rows run with different fills (--merge at another --fills) compare there.
-    per_fill = r["cpu_s"] / float(np.sum(r["realisations"]))
-    return cells + [f"{r['wall_s']:.0f}", f"{r['cpu_s']:.0f}", f"{per_fill:.0f}", speedup]
+        change = at_reference_peak(r, ref)
+        cells += ["-" if change is None else f"{100 * change[0]:+.1f} ± {100 * change[1]:.1f} %",
+                  f"{100 * rms:.1f} %", f"{within} / {len(r['result'])}"]
+    speedup = "-" if ref is None or ref["rc"] != 0 else \
+        f"{cpu_per_fill(ref) / cpu_per_fill(r):.2f}"
+    return cells + [f"{r['wall_s']:.0f}", f"{r['cpu_s']:.0f}", f"{cpu_per_fill(r):.0f}", speedup]
 
 
 def plot(results, names, path):
-    """The Pareto plot: RMS difference and peak against CPU time, one point per lever."""
+    """The Pareto plot against CPU time a fill: the error (the RMS over the curve; over one point
+    the signed change with its interval), the peak with its interval, and every fill at the
+    reference's highest point (the ensemble's states, lever by lever)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     ref = results.get("reference")
-    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for n in names:
-        r = results[n]
-        if r["rc"] != 0:
-            continue
+    ok = [n for n in names if results[n]["rc"] == 0]
+    fig, (left, middle, right) = plt.subplots(1, 3, figsize=(16, 4.6))
+    single = ref is not None and ref["rc"] == 0 and len(ref["frequency"]) == 1
+    for i, n in enumerate(ok):
+        r, cost, colour = results[n], cpu_per_fill(results[n]), f"C{i}"
         if n != "reference" and ref is not None and ref["rc"] == 0:
-            rms = 100 * curve_error(r, ref)[0]
-            left.plot(r["cpu_s"], rms, "o")
-            left.annotate(n, (r["cpu_s"], rms), textcoords="offset points", xytext=(4, 4),
-                          fontsize=8)
+            change = at_reference_peak(r, ref)
+            if single and change is not None:
+                left.errorbar(cost, 100 * change[0], yerr=100 * change[1], fmt="o", capsize=3,
+                              color=colour)
+                y = 100 * change[0]
+            else:
+                y = 100 * curve_error(r, ref)[0]
+                left.plot(cost, y, "o", color=colour)
+            left.annotate(n, (cost, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
         k, peak, ci = curve_peak(r)
-        right.errorbar(r["cpu_s"], 1e3 * peak, yerr=1e3 * ci, fmt="o", capsize=3)
-        right.annotate(f"{n} ({r['frequency'][k]:g} Hz)", (r["cpu_s"], 1e3 * peak),
-                       textcoords="offset points", xytext=(4, 4), fontsize=8)
-    left.set(xscale="log", xlabel="CPU time (s)", ylabel="RMS diff. / reference peak (%)",
-             title="FRF error against cost")
-    right.set(xscale="log", xlabel="CPU time (s)", ylabel="peak amplitude (mm), 95 % CI",
-              title="highest point of the FRF (mean over fills)")
-    for axis in (left, right):
+        middle.errorbar(cost, 1e3 * peak, yerr=1e3 * ci, fmt="o", capsize=3, color=colour)
+        middle.annotate(f"{n} ({r['frequency'][k]:g} Hz)", (cost, 1e3 * peak),
+                        textcoords="offset points", xytext=(4, 4), fontsize=8)
+    if single:
+        left.axhspan(-3, 3, color="0.9", zorder=0, label="± 3 %")
+        left.axhline(0, color="0.5", lw=0.8)
+        left.legend(fontsize=8)
+    left.set(xscale="log", xlabel="CPU s a fill",
+             ylabel="peak - reference (%), 95 % CI" if single else
+             "RMS diff. / reference peak (%)", title="error against cost")
+    middle.set(xscale="log", xlabel="CPU s a fill", ylabel="peak amplitude (mm), 95 % CI",
+               title="highest point of the FRF (mean over fills)")
+    if ref is not None and ref["rc"] == 0:
+        frequency = ref["frequency"][curve_peak(ref)[0]]
+        rng = np.random.default_rng(0)
+        for i, n in enumerate(ok):
+            r = results[n]
+            a = 1e3 * np.asarray(r["fills_amplitude"])[np.isclose(r["fills_frequency"], frequency)]
+            at = np.flatnonzero(np.isclose(r["frequency"], frequency))
+            if at.size == 0:
+                continue
+            right.plot(i + rng.uniform(-0.25, 0.25, a.size), a, ".", alpha=0.6, color=f"C{i}")
+            j = int(at[0])
+            right.errorbar(i + 0.35, 1e3 * r["amplitude"][j], yerr=1e3 * r["amplitude_ci"][j],
+                           fmt="k_", capsize=3)
+        right.set_xticks(range(len(ok)), ok, rotation=20, fontsize=8)
+        right.set(ylabel="amplitude (mm)",
+                  title=f"every fill at {frequency:g} Hz (black: mean, 95 % CI)")
+    for axis in (left, middle, right):
         axis.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -346,8 +392,9 @@ def write(head, names, results, output, stem):
                for n, r in results.items()}
     ref = results.get("reference")
     header = ["lever", "what it changes", "dt (s)", "highest point, mean ± 95 % CI",
-              "result points", "RMS diff. / ref. peak", "diffs within both 95 % CI", "wall (s)",
-              "CPU (s)", "CPU s a fill", "speed-up (CPU)"]
+              "result points", "at the ref. peak: change ± 95 % CI", "RMS diff. / ref. peak",
+              "diffs within both 95 % CI", "wall (s)", "CPU (s)", "CPU s a fill",
+              "speed-up (CPU a fill)"]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(row(n, results[n], ref)) + " |" for n in names]
     report = "\n".join(["# Accuracy against cost on the Saeki FRF", ""] + head +

@@ -51,6 +51,8 @@ LEVERS = {
                   {}),
     "young 2e8": ("contacts 10x softer (dt follows the Rayleigh time)",
                   {"contact": {"young": 2.0e8}}),
+    "young 2e7": ("contacts 100x softer", {"contact": {"young": 2.0e7}}),
+    "young 2e6": ("contacts 1000x softer", {"contact": {"young": 2.0e6}}),
     "dt_safety 0.3": ("time step 2x", {"solver": {"dt_safety": 0.3}}),
     "loose every 5": ("loose coupling, one exchange every 5 steps",
                       {"coupling": {"scheme": "loose", "every": 5}}),

@@ -13,19 +13,22 @@ they disagree; --fills N: N a point, every row) over --band (start, stop, step i
 14-16 Hz in 0.5 Hz, where the example's resonance lies; start = stop: one frequency), each point
 capped at 300 periods a fill (settle.max_periods) so that a lever costs a bounded time. The
 reference row is that deck as it stands (young 2e9 Pa, dt_safety 0.15, interleaved coupling
-every step, tolerance 0.02); every other row changes one lever (LEVERS below). Per row: the peak
-of the result points (the /frf attributes peak_amplitude +- its 95 % interval, peak_frequency),
-the result points, the RMS over every point, result or not, of (mean - reference mean) /
-reference peak, how many of those differences lie within the two 95 % intervals combined (a
-difference inside them is not resolved), the wall time (/meta wall_time_s), the CPU time of the
-pdsim process and the speed-up against the reference. Runs go --jobs at a time, each with
---threads 1 (wall times of concurrent runs share the machine: the CPU times compare). Written to
-validation/results/accuracy_cost_frf.md with the date, machine, version and command, the runs'
-figures beside it (.json, which --from-json reads back to redo the table and plot without
-running) and the Pareto plot (.png: the curve's error against CPU time, and the peak with its
-interval against CPU time). --more-fills N runs N more fills of each named lever of a --merge
-run (fill seeds after the ones it ran) and pools them with its fills point by point: the mean
-over every fill with its Student-t 95 % interval, as the engine gives an ensemble of fills.
+every step, tolerance 0.02); every other row changes one lever (LEVERS below). Per row: the
+highest point (mean over its fills, result or not, with its 95 % interval), the result points,
+the change at the reference's highest point with the two 95 % intervals combined, the RMS over
+every point, result or not, of (mean - reference mean) / reference peak, how many of those
+differences lie within the two 95 % intervals combined (a difference inside them is not
+resolved), the wall time (/meta wall_time_s), the CPU time of the pdsim process, the CPU s a
+fill a point and the speed-up against the reference in those (rows with other fill counts
+compare). Runs go --jobs at a time, each with --threads 1 (wall times of concurrent runs share
+the machine: the CPU times compare). Written to validation/results/accuracy_cost_frf.md with
+the date, machine, version and command, the runs' figures beside it (.json, which --from-json
+reads back to redo the table and plot without running) and the Pareto plot (.png, against CPU
+s a fill: the change at the peak, or over a band the curve's RMS error; the peak with its
+interval; every fill at the reference's highest point, lever by lever). --more-fills N runs N
+more fills of each named lever of a --merge run (fill seeds after the ones it ran) and pools
+them with its fills point by point: the mean over every fill with its Student-t 95 % interval,
+as the engine gives an ensemble of fills.
 """
 import argparse
 import concurrent.futures
@@ -75,18 +78,15 @@ LEVERS = {
 }
 
 
-def deck_seed():
-    """The example deck's fill seed (its fills are seeds seed, seed + 1, ...)."""
+def example_deck():
     import tomllib  # Python 3.11+
     with open(DECK, "rb") as f:
-        return tomllib.load(f)["damper"][0]["particles"]["seed"]
+        return tomllib.load(f)
 
 
 def deck_text(band, overrides, fills=None):
     """examples/saeki_250.toml with the band, the periods cap, the fills and the lever's keys."""
-    import tomllib  # Python 3.11+
-    with open(DECK, "rb") as f:
-        deck = tomllib.load(f)
+    deck = example_deck()
     start, stop, step = band
     x = deck["excitation"]
     x["frequencies"] = {"start": start, "stop": stop, "step": step}
@@ -327,7 +327,8 @@ def main():
             sys.exit(f"accuracy_cost_frf.py: --more-fills: {args.merge}'s '{n}' did not run "
                      f"--band {args.band}; more fills must go to the points it ran")
         # The next fill seeds: the lever's seed (the deck's unless it sets one) + fills it ran.
-        first = LEVERS[n][1].get("particles", {}).get("seed", deck_seed())
+        first = LEVERS[n][1].get("particles", {}).get(
+            "seed", example_deck()["damper"][0]["particles"]["seed"])
         overrides = {**LEVERS[n][1], "particles": {"seed": first + max(old["realisations"])}}
         decks[n] = deck_text(band, overrides, args.more_fills)
     workdir = tempfile.mkdtemp(prefix="pdsim_accuracy_frf_")

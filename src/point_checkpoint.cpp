@@ -80,6 +80,11 @@ const std::vector<PointField> kPointFields = [] {
                         [](FrequencyPoint& p) { p.judged.stationary = p.judged.converged; }),
   };
   append_later_mechanisms(fields, std::make_index_sequence<kMechanisms - kRolling - 1>());
+  // Kept since fills stop at looks (by_spread) and a drift at the cap can count (drift).
+  fields.push_back(PDSIM_POINT_FIELD(judged.by_spread, from_bool, to_bool,
+                                     [](FrequencyPoint& p) { p.judged.by_spread = false; }));
+  fields.push_back(
+      PDSIM_POINT_FIELD(judged.drift, same, same, [](FrequencyPoint& p) { p.judged.drift = 0; }));
   return fields;
 }();
 #undef PDSIM_POINT_FIELD

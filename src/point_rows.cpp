@@ -16,7 +16,7 @@ Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const ExcitationSp
   std::vector<FillValue> fills;
   for (const FrequencyPoint& p : runs)
     fills.push_back({p.judged.mean, p.judged.amplitude_ci, p.judged.phase_ci, p.judged.batches - 1,
-                     settled(p.judged)});
+                     settled(p.judged), p.judged.trend ? p.judged.drift : std::nan("")});
   const bool last = static_cast<int>(runs.size()) >= x.settle.max_realisations;
   Ensemble e = judge_ensemble(fills, x.settle.tolerance, last);
   if (fixed_duration(x)) {
@@ -144,12 +144,12 @@ void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fi
     t.realisation.push_back(r);
     t.branch.push_back(e.branch_of[k]);
     t.amplitude.push_back(std::abs(p.judged.mean));
-    t.amplitude_ci.push_back(p.judged.amplitude_ci);
+    t.amplitude_ci.push_back(e.fills[k].amplitude_ci);
     t.phase.push_back(std::arg(p.judged.mean));
     t.phase_ci.push_back(p.judged.phase_ci);
     t.periods.push_back(p.judged.periods);
     t.converged.push_back(p.judged.converged ? 1 : 0);
-    t.settled.push_back(settled(p.judged) ? 1 : 0);
+    t.settled.push_back(e.fills[k].settled ? 1 : 0);
   }
   for (std::size_t b = 0; b < e.branch.size(); ++b) {
     const GroupMean& g = e.branch[b];

@@ -298,6 +298,7 @@ Stationary summarise(const std::vector<std::complex<double>>& series,
   const bool drift_p =
       significant_slope(kept_p, &slope_p) && std::fabs(slope_p) * retained > relevant;
   s.trend = drift_a || drift_p;
+  s.drift = std::fabs(slope_a) * retained;
   s.stationary = n >= criteria.min_periods && !s.trend && s.batches >= 2;
   return s;
 }
@@ -309,6 +310,10 @@ Stationary analyse_periods(const std::vector<std::complex<double>>& series,
   Stationary s = summarise(series, criteria, first);
   const int n = s.periods;
   const double tol = criteria.tolerance, size = std::abs(s.mean);
+  // The half-widths enough here: the tolerance's, or the floors where the fills spread wider.
+  const double amplitude_enough = std::max(tol * size, criteria.amplitude_floor);
+  const double phase_enough = std::max(tol, criteria.phase_floor);
+  auto enough = [&] { return s.amplitude_ci <= amplitude_enough && s.phase_ci <= phase_enough; };
   char text[64];
   if (n < 2) {
     s.reason = "fewer than 2 periods";
@@ -323,7 +328,7 @@ Stationary analyse_periods(const std::vector<std::complex<double>>& series,
                          " periods) for " + std::to_string(criteria.min_batches) + " batches of " +
                          std::to_string(s.batch_length) + " periods"
                    : "too few periods for " + std::to_string(criteria.min_batches) + " batches";
-  } else if (s.amplitude_ci > tol * size || s.phase_ci > tol) {
+  } else if (!enough()) {
     s.reason = "interval wider than the tolerance";
   } else if (first < 0) {
     // The mean must also hold still. The test runs after every period, so a slow drift, or a
@@ -338,7 +343,7 @@ Stationary analyse_periods(const std::vector<std::complex<double>>& series,
       const std::complex<double> turned = std::conj(along) * moved;
       s.amplitude_ci = std::max(s.amplitude_ci, std::fabs(turned.real()));
       s.phase_ci = std::max(s.phase_ci, size > 0 ? std::fabs(turned.imag()) / size : 0.0);
-      if (s.amplitude_ci > tol * size || s.phase_ci > tol) {
+      if (!enough()) {
         std::snprintf(text, sizeof text, "%.2g %%", 100 * std::abs(moved) / std::max(size, 1e-300));
         s.reason = "still moving (the mean moved " + std::string(text) + " since period " +
                    std::to_string(earlier) + ")";
@@ -346,7 +351,32 @@ Stationary analyse_periods(const std::vector<std::complex<double>>& series,
     }
   }
   s.converged = s.reason.empty();
+  s.by_spread = s.converged && (s.amplitude_ci > tol * size || s.phase_ci > tol);
   return s;
+}
+
+bool known_at_look(const std::vector<std::complex<double>>& series,
+                   const SteadyStateCriteria& criteria) {
+  const int n = static_cast<int>(series.size());
+  return analyse_periods(series, criteria).converged &&
+         analyse_periods(series, criteria, n / 2).converged;
+}
+
+Floors spread_floors(const std::vector<std::complex<double>>& fills) {
+  if (fills.size() < 2) return {};
+  std::complex<double> sum = 0;
+  for (const auto& h : fills) sum += h;
+  const std::complex<double> along = std::abs(sum) > 0 ? sum / std::abs(sum) : 1.0;
+  std::vector<double> amplitudes, phases;
+  for (const auto& h : fills) {
+    amplitudes.push_back(std::abs(h));
+    phases.push_back(std::arg(std::conj(along) * h));
+  }
+  // The phase to the same relative precision as the amplitude at least (a harmonic known to a
+  // circle about its mean), or to its own spread's share.
+  const double amplitude = kSpreadFraction * sample_sd(amplitudes);
+  return {amplitude,
+          std::max(kSpreadFraction * sample_sd(phases), amplitude / mean_of(amplitudes))};
 }
 
 }  // namespace pdsim
@@ -395,8 +425,19 @@ GroupMean group_mean(const std::vector<FillValue>& fills, const std::vector<int>
 
 }  // namespace
 
-Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance, bool last) {
+Ensemble judge_ensemble(const std::vector<FillValue>& given, double tolerance, bool last) {
+  // A fill still drifting at max_periods counts when its drift is small beside the fills'
+  // spread, with its whole fitted change over its retained periods added to its half-width: its
+  // mean lies half that change from where the drift ended, and the state it was heading for
+  // lies beyond, by an amount that the change bounds while the climb slows.
+  std::vector<FillValue> fills = given;
+  std::vector<std::complex<double>> values;
+  for (const FillValue& f : given) values.push_back(f.harmonic);
+  const double allowed = spread_floors(values).amplitude;
+  for (FillValue& f : fills)
+    if (!f.settled && f.drift <= allowed) f.settled = true, f.amplitude_ci += f.drift;
   Ensemble e;
+  e.fills = fills;
   const int n = static_cast<int>(fills.size());
   std::vector<int> all(static_cast<std::size_t>(n));
   for (int k = 0; k < n; ++k) all[std::size_t(k)] = k;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <complex>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,10 @@ struct SteadyStateCriteria {
   // Judged after every period until it passes (a steady-state run), or once at the end of a
   // fixed duration, where an early underestimate of the correlation cannot stop the run.
   bool sequential = true;
+  // Half-widths (the amplitude's unit; rad) that are enough whatever the tolerance asks: where
+  // the fills of a point spread widely, a fraction of that spread (spread_floors()). The
+  // tolerance still sets the resolution and which drift counts.
+  double amplitude_floor = 0, phase_floor = 0;
 };
 
 // The stationary part of a per-period series of complex first harmonics H_k.
@@ -33,12 +38,14 @@ struct Stationary {
   double amplitude_ci = 0, phase_ci = 0;  // 95 % half-widths of |mean| (its unit) and arg (rad)
   bool correlated = false;  // too few batches of the needed length: run longer (or realisations)
   bool trend = false;       // the retained periods drift, significantly and by a relevant amount
+  double drift = 0;         // the amplitude's fitted change across the retained periods, its unit
   // Held still: min_periods run, no relevant drift, and at least two batches (an interval,
   // however wide), whether or not the mean is known to the tolerance: a fill near resonance can
   // wander within its states (at 14.75 Hz on the Saeki deck between 1.75 and 1.97 mm, an
   // autocorrelation time of 90 periods) for longer than any affordable run settles it to 2 %.
   bool stationary = false;
-  bool converged = false;  // stationary, and the mean known to the tolerance
+  bool converged = false;  // stationary, and the mean known to the tolerance (or its floors)
+  bool by_spread = false;  // converged on the floors only: its interval is wider than tolerance
   std::string reason;      // why not converged ("" when converged)
 };
 
@@ -47,6 +54,30 @@ struct Stationary {
 // be periods 0..first-1 instead of being searched for (settle.average_periods).
 Stationary analyse_periods(const std::vector<std::complex<double>>& series,
                            const SteadyStateCriteria& criteria, int first = -1);
+
+// What a fill's own interval must reach at a point where fills spread: the fraction
+// kSpreadFraction of the sample standard deviation of the fills' amplitudes (its unit), and of
+// their phases (rad, about their mean direction) or the amplitude's relative floor, whichever is
+// larger, from their current means (two at least; else 0).
+// The ensemble mean's variance is (s_b^2 + se^2) / R for a between-fill spread s_b and a
+// fill's own standard error se; a fill whose 95 % half-width is s_b / 3 (se about s_b / 6)
+// adds 3 % to that variance (1.4 % to the interval), which more periods of it cannot remove
+// and another fill divides by R + 1. Near resonance (s_b 14 % on the Saeki deck) that stops a
+// fill at about 5 % instead of the tolerance's 2 %, for a sixth of the periods.
+constexpr double kSpreadFraction = 1.0 / 3.0;
+struct Floors {
+  double amplitude = 0, phase = 0;
+};
+Floors spread_floors(const std::vector<std::complex<double>>& fills);
+
+// A fill judged at a look with the floors of its point's spread (criteria): converged from the
+// warm-up found, and also from the last half of its periods alone. A fill climbing to its state
+// after a step (a time constant of 80 periods near the Saeki resonance) leaves a tail that
+// MSER's warm-up keeps, a bias of about half the interval it stops at; with the floors above
+// the tolerance that is too much, while the last half, the classical rule, holds a tenth of the
+// tail (steady_state_test).
+bool known_at_look(const std::vector<std::complex<double>>& series,
+                   const SteadyStateCriteria& criteria);
 
 // Mean and 95 % half-width of a real per-period series over periods first..n-1, in batches of
 // `batch_length` (the earliest remainder dropped). A single batch gives a zero half-width only
@@ -86,6 +117,9 @@ struct FillValue {
   double amplitude_ci = 0, phase_ci = 0;  // its unit, rad
   int dof = 0;
   bool settled = false;
+  // A fill drifting at max_periods: its amplitude's fitted change over its retained periods
+  // (Stationary::drift); NaN for a fill that does not drift.
+  double drift = std::numeric_limits<double>::quiet_NaN();
 };
 
 // Mean amplitude and phase of a group of fills with their 95 % intervals (combine_runs():
@@ -115,22 +149,25 @@ struct Ensemble {
   GroupMean mean;                 // over every fill
   std::vector<GroupMean> branch;  // ordered by amplitude, highest first
   std::vector<int> branch_of;     // per fill, index into branch
+  std::vector<FillValue> fills;   // as judged: a drift that counts is in its half-width
   PointResult result = PointResult::none;
   // More fills would help: every fill settled, but the ensemble mean's interval misses the
   // tolerance (its branches may each meet it: a result of several branches all the same).
   bool wants_fills = false;
   std::string reason;  // why not a result, or what the branches are ("" for one state)
 };
-// Result rules: every fill must have settled on its own (else not a result: a fill still
-// drifting at max_periods); then one state when the ensemble mean amplitude's interval meets
-// `tolerance` (relative), several branches when there are two or more and each branch's mean
-// meets it (the ensemble mean then carries its wide interval). With `last` (no more fills will
-// come: settle.max_realisations reached), fills that are distinct beyond their own intervals
-// (Cochran's Q, combine_runs()) are a result of several states even where a branch's mean
-// misses the tolerance: the distribution over fills is what this damper has there, and the
-// mean, the spread and each branch carry their own intervals (GroupMean::within says which
-// meet the tolerance). Fills that agree on one state whose mean misses the tolerance are not a
-// result: their own intervals are too wide (more periods, settle.max_periods, would narrow them).
+// Result rules: every fill must have settled on its own, or drifted at max_periods by no more
+// than kSpreadFraction of the spread of the fills' amplitudes (it then counts with that drift
+// added to its half-width: its value lies within the drift of where the fill was heading);
+// else not a result (a fill still drifting at max_periods by more); then one state when the
+// ensemble mean amplitude's interval meets `tolerance` (relative), several branches when there are
+// two or more and each branch's mean meets it (the ensemble mean then carries its wide interval).
+// With `last` (no more fills will come: settle.max_realisations reached), fills that are distinct
+// beyond their own intervals (Cochran's Q, combine_runs()) are a result of several states even
+// where a branch's mean misses the tolerance: the distribution over fills is what this damper has
+// there, and the mean, the spread and each branch carry their own intervals (GroupMean::within says
+// which meet the tolerance). Fills that agree on one state whose mean misses the tolerance are not
+// a result: their own intervals are too wide (more periods, settle.max_periods, would narrow them).
 Ensemble judge_ensemble(const std::vector<FillValue>& fills, double tolerance, bool last = false);
 
 // Two-sided 95 % and 99 % quantiles of Student's t with `dof` degrees of freedom (infinity for

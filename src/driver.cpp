@@ -46,6 +46,8 @@ class Driver::Impl {
     reports_.resize(fills);
     runs_.resize(fills);
     reached_.assign(fills, -1);
+    looks_.assign(fills, std::vector<std::vector<std::complex<double>>>(steps));
+    look_at_.assign(fills, 0);
     seen_.resize(fills);
     bed_once_ = std::make_unique<std::once_flag[]>(fills);
   }
@@ -68,6 +70,11 @@ class Driver::Impl {
         if (const auto it = c.find(point_key(r, i)); it != c.end()) {
           points_[r][i] = unpack(state_values<double>(c, point_key(r, i)));
           unpack_periods(state_values<double>(c, point_key(r, i) + ".periods"), *points_[r][i]);
+          if (c.count(point_key(r, i) + ".looks") > 0) {
+            const auto& v = state_values<double>(c, point_key(r, i) + ".looks");
+            for (std::size_t j = 0; j + 1 < v.size(); j += 2)
+              looks_[r][i].emplace_back(v[j], v[j + 1]);
+          }
           reached_[r] = static_cast<long>(i);
         }
       if (StateArrays state = get_state(c, "task.r" + std::to_string(r) + "."); !state.empty())
@@ -97,6 +104,7 @@ class Driver::Impl {
 
   Results run(const std::function<void(const Results&)>& checkpoint, int stop_after) {
     started_ = Clock::now();
+    simulated_start_ = simulated_;
     g_stop_runs = g_interrupted != 0;  // an interrupt before the start stops it at once
     checkpoint_ = checkpoint;
     stop_after_ = stop_after;
@@ -361,21 +369,31 @@ class Driver::Impl {
     std::unique_lock<std::mutex> lock(mutex_);
     judge_ready();
     std::exception_ptr failure;
-    std::condition_variable changed;
+    std::condition_variable& changed = changed_;
     auto worker = [&] {
       std::unique_lock<std::mutex> held(mutex_);
       for (;;) {
         if (g_stop_runs) return;
         // The fill furthest behind first: points then finish about in order.
         std::size_t pick = beds_.size();
-        bool running = false;
+        bool running = false, paused = false;
         for (std::size_t r = 0; r < beds_.size(); ++r) {
           running = running || busy_[r];
-          if (!busy_[r] && reached_[r] < target_[r] &&
-              (pick == beds_.size() || reached_[r] < reached_[pick]))
-            pick = r;
+          if (busy_[r] || reached_[r] >= target_[r]) continue;
+          // A fill paused at a look goes on once the fills it compares with have got there.
+          if (look_at_[r] > 0 && look_values(r).empty()) {
+            paused = true;
+            continue;
+          }
+          if (pick == beds_.size() || reached_[r] < reached_[pick]) pick = r;
         }
         if (pick == beds_.size()) {
+          // The first fills never wait for a fill behind them, so a pause always ends.
+          if (!running && paused && !failure) {
+            failure =
+                std::make_exception_ptr(SimulationError("fills wait for each other at a look"));
+            g_stop_runs = true;
+          }
           if (!running) return;  // nothing left to run, and nothing running could add any
           changed.wait(held);
           continue;
@@ -407,6 +425,97 @@ class Driver::Impl {
     if (g_stop_runs && !stopped_) throw Interrupted();
   }
 
+  // The simulated time (s) that the points still planned are expected to take (mutex_ held),
+  // for the progress line's ETA: every fill's points up to its target, and the fills that the
+  // points not yet judged are expected to add (each catching up from where it is). A fill's
+  // cost at a point is the mean of the fills that ran it, or before any did, that of the
+  // finished points of the nearest amplitude, the point's amplitude predicted from fill 0's
+  // last point (the equivalent-linear model of the predicted start): near resonance, where
+  // the amplitude is large, fills need more periods and points more fills, on either side.
+  double planned_remaining() const {
+    struct Measured {
+      double amplitude = 0, periods = 0;
+      int fills = 0;
+    };
+    const std::size_t points = frequencies_.size();
+    std::vector<Measured> seen(points);
+    std::vector<std::pair<double, std::size_t>> finished;  // (amplitude, point), judged points
+    for (std::size_t s = 0; s < points; ++s) {
+      for (std::size_t r = 0; r < points_.size(); ++r)
+        if (const auto& p = points_[r][s]) {
+          seen[s].amplitude += std::abs(p->judged.mean);
+          seen[s].periods += p->judged.periods;
+          ++seen[s].fills;
+        }
+      if (seen[s].fills > 0) {
+        seen[s].amplitude /= seen[s].fills;
+        seen[s].periods /= seen[s].fills;
+      }
+      if (done_[s]) finished.emplace_back(seen[s].amplitude, s);
+    }
+    std::sort(finished.begin(), finished.end());
+    // A finished point's (periods a fill, fills) interpolated at `amplitude`, in its logarithm.
+    auto learned = [&](double amplitude) -> std::pair<double, double> {
+      if (finished.empty()) return {double(excitation().settle.min_periods), double(fills_min_)};
+      auto at = [&](std::size_t k) {
+        const std::size_t s = finished[k].second;
+        return std::pair<double, double>{seen[s].periods, double(want_[s])};
+      };
+      const auto above = std::lower_bound(finished.begin(), finished.end(),
+                                          std::make_pair(amplitude, std::size_t(0)));
+      if (above == finished.begin()) return at(0);
+      if (above == finished.end()) return at(finished.size() - 1);
+      const auto k = static_cast<std::size_t>(above - finished.begin());
+      const double a0 = std::log(finished[k - 1].first), a1 = std::log(above->first);
+      const double w = a1 > a0 ? (std::log(amplitude) - a0) / (a1 - a0) : 1.0;
+      const auto [p0, f0] = at(k - 1);
+      const auto [p1, f1] = at(k);
+      return {p0 + w * (p1 - p0), f0 + w * (f1 - f0)};
+    };
+    // Fill 0's last point as an effective mass and damper per damper (FrequencyRun's model).
+    const FrequencyPoint* last = nullptr;
+    for (std::size_t s = 0; s < points; ++s)
+      if (points_[0][s] && !points_[0][s]->mean.container.empty()) last = &*points_[0][s];
+    auto predicted = [&](std::size_t s) {
+      const Scene& scene = *scenes_[0];
+      if (!last || !scene.structure || last->frequency <= 0) return 0.0;
+      const double w0 = 2 * kPi * last->frequency, w = 2 * kPi * frequencies_[s];
+      std::vector<std::complex<double>> impedance;
+      for (std::size_t k = 0; k < last->mean.container.size(); ++k) {
+        const std::complex<double> u = last->mean.container[k];
+        const std::complex<double> z = std::abs(u) > 0 ? -last->mean.damper_force[k] / u : 0.0;
+        impedance.emplace_back(z.real() / (w0 * w0) * w * w, z.imag() / w0 * w);
+      }
+      const DrivePhasors drive =
+          drive_phasors(*scene.structure, excitation().input, point_amplitude(excitation(), s), w);
+      return std::abs((scene.structure->response.cast<std::complex<double>>() *
+                       harmonic_response(*scene.structure, w, drive.load, impedance, drive.base))
+                          .value());
+    };
+    std::vector<double> cost(points);  // simulated seconds a fill
+    std::vector<int> fills(points);    // fills each point is expected to end with
+    for (std::size_t s = 0; s < points; ++s) {
+      const auto [periods, wanted] = seen[s].fills > 0
+                                         ? std::pair<double, double>{seen[s].periods, 0.0}
+                                         : learned(predicted(s));
+      const double f = frequencies_[s] > 0 ? frequencies_[s] : 1.0;
+      cost[s] = periods / f;
+      const double expected = seen[s].fills > 0 ? learned(seen[s].amplitude).second : wanted;
+      fills[s] = done_[s]
+                     ? want_[s]
+                     : std::clamp(static_cast<int>(std::lround(expected)), want_[s], fills_max_);
+    }
+    double remaining = 0;
+    std::vector<long> reach(target_);  // each fill's last point, as planned so far
+    for (std::size_t r = 0; r < reach.size(); ++r)
+      for (long s = reached_[r] + 1; s <= reach[r]; ++s) remaining += cost[std::size_t(s)];
+    for (std::size_t s = 0; s < points; ++s)
+      for (auto r = std::size_t(want_[s]); !done_[s] && r < std::size_t(fills[s]); ++r)
+        for (; reach[r] < static_cast<long>(s); ++reach[r])
+          remaining += cost[std::size_t(reach[r] + 1)];
+    return remaining;
+  }
+
   // Judges every point whose wanted fills have all run it (mutex_ held): finished, or more
   // fills sent to it.
   void judge_ready() {
@@ -431,6 +540,8 @@ class Driver::Impl {
       finished_step(s);
       if (stopped_) return;
     }
+    if (runs_to_steady_state(excitation()))
+      progress_->set_work(simulated_ - simulated_start_, planned_remaining());
   }
 
   // Runs fill r's next point (a fill's first from its settled bed) and records it.
@@ -439,7 +550,9 @@ class Driver::Impl {
       ensure_bed(r, progress);
       std::lock_guard<std::mutex> lock(mutex_);  // task_states_ and results_ are shared
       runs_[r] = std::make_unique<FrequencyRun>(scene(r), [this, r, &progress](double f, double d) {
-        progress.update(r, double(reached_[r] + 1) + d, f);
+        // d is the point's periods over max_periods (FrequencyRun::run_period())
+        progress.update(r, double(reached_[r] + 1) + d, f,
+                        f > 0 ? d * excitation().settle.max_periods / f : 0.0);
       });
       FrequencyRun& run = *runs_[r];
       if (const auto it = task_states_.find(r); it != task_states_.end()) {
@@ -454,7 +567,12 @@ class Driver::Impl {
     const auto k = static_cast<std::size_t>(reached_[r] + 1);
     FrequencyPoint point;
     try {
-      point = run.run_point(frequencies_[k], point_amplitude(excitation(), k));
+      if (!looking())
+        point = run.run_point(frequencies_[k], point_amplitude(excitation(), k));
+      else if (run_with_looks(run, r, k))
+        point = run.finish();
+      else
+        return;  // paused at a look
     } catch (const SimulationError& e) {
       fail(run, r, e);
     }
@@ -473,6 +591,70 @@ class Driver::Impl {
     }
     const bool catching_up = r >= static_cast<std::size_t>(want_[k]);
     progress_->say(describe(*points_[r][k], r) + (catching_up ? " (catching up)" : ""));
+  }
+
+  // A carried sweep's fills look at each other every kLookPeriods periods of a point: a fill
+  // whose own interval is small beside the fills' spread (spread_floors()) stops there, since
+  // more of its periods would not narrow the ensemble mean's interval and another fill does.
+  // Fill r compares its mean with those of the fills before it (or of all the first fills,
+  // settle.realisations) at the same look, or their final ones where they finished the point
+  // before it, so that no decision depends on the schedule. Every fill before r runs every
+  // point r runs (fills are added in order, each up to the last point that wants it), so a
+  // look waits only for fills before it, and the first fills for each other. Every 25
+  // periods: a tenth of the longest climbs after a step, a few seconds of a core on the Saeki
+  // deck.
+  static constexpr int kLookPeriods = 25;
+  bool looking() const {
+    return !independent() && fills_min_ >= 2 && runs_to_steady_state(excitation()) &&
+           excitation().settle.average_periods == 0;
+  }
+  // The means fill r's pending look compares (mutex_ held): its own and those of the fills
+  // before it at that look, or their final ones; empty while one has not got there.
+  std::vector<std::complex<double>> look_values(std::size_t r) const {
+    const auto s = static_cast<std::size_t>(reached_[r] + 1), j = std::size_t(look_at_[r]);
+    std::vector<std::complex<double>> values;
+    for (std::size_t q = 0; q < std::max(r + 1, static_cast<std::size_t>(fills_min_)); ++q) {
+      const auto& posted = looks_[q][s];
+      if (posted.size() >= j)
+        values.push_back(posted[j - 1]);
+      else if (points_[q][s])
+        values.push_back(points_[q][s]->judged.mean);
+      else
+        return {};
+    }
+    return values;
+  }
+  // Runs fill r's point k on from where it paused: true when it is done, false when a look
+  // waits for the first fills.
+  bool run_with_looks(FrequencyRun& run, std::size_t r, std::size_t k) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (look_at_[r] == 0) {
+      looks_[r][k].clear();  // a point run again after a resume posts the same means again
+      lock.unlock();
+      run.begin_point(frequencies_[k], point_amplitude(excitation(), k));
+      lock.lock();
+    }
+    for (;;) {
+      if (look_at_[r] > 0) {
+        const std::vector<std::complex<double>> values = look_values(r);
+        if (values.empty()) return false;
+        lock.unlock();
+        const bool done = run.look(spread_floors(values));
+        lock.lock();
+        if (done) break;
+      }
+      const int next = (look_at_[r] + 1) * kLookPeriods;
+      lock.unlock();
+      const bool done = run.run_until(next);
+      const std::complex<double> mean = done ? 0.0 : run.judge().mean;
+      lock.lock();
+      if (done) break;
+      looks_[r][k].push_back(mean);
+      ++look_at_[r];
+      changed_.notify_all();  // a fill paused at this look may go on
+    }
+    look_at_[r] = 0;
+    return true;
   }
 
   // Independent points side by side, each point's fills in turn from their settled beds.
@@ -539,6 +721,11 @@ class Driver::Impl {
         if (points_[k][f]) {
           c[point_key(k, f)] = pack(*points_[k][f]);
           c[point_key(k, f) + ".periods"] = pack_periods(*points_[k][f]);
+          if (!looks_[k][f].empty()) {
+            std::vector<double> looks;
+            for (const auto& h : looks_[k][f]) looks.insert(looks.end(), {h.real(), h.imag()});
+            c[point_key(k, f) + ".looks"] = std::move(looks);
+          }
         }
     for (const auto& [k, state] : task_states_)
       put_state(c, "task.r" + std::to_string(k) + ".", state);
@@ -585,9 +772,10 @@ class Driver::Impl {
     if (fixed_duration(x))
       s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
     else
-      s << (p.judged.converged  ? ", settled"
-            : settled(p.judged) ? ", held still (" + p.judged.reason + ")"
-                                : ", NOT settled: " + p.judged.reason);
+      s << (p.judged.by_spread   ? ", settled to a third of the fills' spread"
+            : p.judged.converged ? ", settled"
+            : settled(p.judged)  ? ", held still (" + p.judged.reason + ")"
+                                 : ", NOT settled: " + p.judged.reason);
     return s.str();
   }
 
@@ -655,6 +843,10 @@ class Driver::Impl {
   std::vector<long> target_;   // carried: the last point each fill is to run
   std::vector<int> want_;      // carried: the fills each point wants
   std::vector<char> busy_;     // carried: a worker is running the fill
+  // carried: each fill's means at its looks, per point, and the look it is paused at (0: none)
+  std::vector<std::vector<std::vector<std::complex<double>>>> looks_;
+  std::vector<int> look_at_;
+  std::condition_variable changed_;  // carried: a fill finished a point, paused or posted a look
   std::vector<Seen> seen_;
   std::map<std::size_t, StateArrays> task_states_;
   std::map<std::size_t, TimeSeries> segments_;
@@ -669,6 +861,7 @@ class Driver::Impl {
   std::size_t finished_ = 0;  // points finished in this process
   long long particle_steps_ = 0;
   double simulated_ = 0, wall_ = 0, wall_before_ = 0;
+  double simulated_start_ = 0;  // of this session (a resumed run's earlier work aside)
   Clock::time_point started_ = Clock::now();
   std::string backend_, variant_;
   int threads_ = 1;

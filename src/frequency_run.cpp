@@ -216,14 +216,12 @@ void FrequencyRun::run_period() {
   if (progress_) progress_(o.frequency, double(o.tracker.periods()) / o.max_periods);
 }
 
-// The periods after the predicted start's refinement, judged as statistics.
-Stationary FrequencyRun::judge() const {
+// The periods after the predicted start's refinement, and how they are judged.
+std::pair<std::vector<std::complex<double>>, SteadyStateCriteria> FrequencyRun::measured() const {
   const Ongoing& o = *ongoing_;
   const SettleSpec& settle = scene_.excitation.settle;
   const auto all =
       o.tracker.series(o.prescribed ? &PeriodSummary::force : &PeriodSummary::displacement);
-  const std::vector<std::complex<double>> series(all.begin() + o.settled_from, all.end());
-  const int n = static_cast<int>(series.size());
   // Each fill settles on its own to the tolerance: its value is one member of the point's
   // ensemble, and one fill can be a branch of its own (src/steady_state.hpp).
   // A fixed run is judged once, on what it has: an interval from two batches is wide but
@@ -231,18 +229,37 @@ Stationary FrequencyRun::judge() const {
   // min_periods counts the measured periods; where the refinement took some of max_periods,
   // what is left of them is enough (min_periods = max_periods asks for a fixed dwell).
   const int min_periods = std::min(settle.min_periods, o.max_periods - o.settled_from);
-  const SteadyStateCriteria criteria{settle.tolerance, min_periods,
-                                     o.fixed ? std::min(settle.batches, 2) : settle.batches,
-                                     !o.fixed};
-  Stationary s = analyse_periods(
-      series, criteria, settle.average_periods > 0 ? std::max(0, n - settle.average_periods) : -1);
-  s.periods += o.settled_from;
-  s.discarded += o.settled_from;
+  return {{all.begin() + o.settled_from, all.end()},
+          {settle.tolerance, min_periods, o.fixed ? std::min(settle.batches, 2) : settle.batches,
+           !o.fixed, o.floors.amplitude, o.floors.phase}};
+}
+
+Stationary FrequencyRun::judge() const {
+  const auto [series, criteria] = measured();
+  const int n = static_cast<int>(series.size()), average = scene_.excitation.settle.average_periods;
+  Stationary s = analyse_periods(series, criteria, average > 0 ? std::max(0, n - average) : -1);
+  s.periods += ongoing_->settled_from;
+  s.discarded += ongoing_->settled_from;
   return s;
+}
+
+bool FrequencyRun::look(const Floors& floors) {
+  Ongoing& o = *ongoing_;
+  o.floors = floors;
+  const auto [series, criteria] = measured();
+  if (known_at_look(series, criteria)) return true;
+  o.floors = {};
+  return false;
 }
 
 FrequencyPoint FrequencyRun::run_frequency(double frequency, double amplitude,
                                            FrequencyStart start) {
+  begin_frequency(frequency, amplitude, start);
+  run_until(ongoing_->max_periods);
+  return finish();
+}
+
+void FrequencyRun::begin_frequency(double frequency, double amplitude, FrequencyStart start) {
   const ExcitationSpec& x = scene_.excitation;
   const SettleSpec& settle = x.settle;
   const bool prescribed = traits(x.kind).moves_containers;
@@ -251,7 +268,7 @@ FrequencyPoint FrequencyRun::run_frequency(double frequency, double amplitude,
   const int max_periods = fixed ? std::max(1, static_cast<int>(std::lround(x.duration * frequency)))
                                 : settle.max_periods;
   ongoing_.emplace(Ongoing{frequency, samples, max_periods, 0, fixed, prescribed,
-                           PeriodTracker(samples, system_.engines().size())});
+                           PeriodTracker(samples, system_.engines().size()), Floors{}});
   Ongoing& o = *ongoing_;
   const double omega = 2 * kPi * frequency;
   // The predicted start, refined: the damper's impedance measured over a few periods at this
@@ -277,21 +294,17 @@ FrequencyPoint FrequencyRun::run_frequency(double frequency, double amplitude,
       o.settled_from = o.tracker.periods();
     }
   }
-  while (o.tracker.periods() < max_periods) {
+}
+
+bool FrequencyRun::run_until(int periods) {
+  Ongoing& o = *ongoing_;
+  const int min_periods = scene_.excitation.settle.min_periods;
+  while (o.tracker.periods() < std::min(periods, o.max_periods)) {
     run_period();
-    if (!fixed && o.tracker.periods() - o.settled_from >= settle.min_periods && judge().converged)
-      break;
+    if (!o.fixed && o.tracker.periods() - o.settled_from >= min_periods && judge().converged)
+      return true;
   }
-  return finish();
-}
-
-int FrequencyRun::periods_left() const {
-  return ongoing_ ? ongoing_->max_periods - ongoing_->tracker.periods() : 0;
-}
-
-FrequencyPoint FrequencyRun::extend(int more) {
-  for (int k = 0; k < more && periods_left() > 0; ++k) run_period();
-  return finish();
+  return o.tracker.periods() >= o.max_periods;
 }
 
 FrequencyPoint FrequencyRun::finish() {
@@ -320,13 +333,20 @@ FrequencyPoint FrequencyRun::finish() {
   return point;
 }
 
-FrequencyPoint FrequencyRun::run_point(double frequency, double amplitude) {
+void FrequencyRun::begin_point(double frequency, double amplitude) {
   const ExcitationSpec& x = scene_.excitation;
   // A point of one fill (a sine) starts from the bed at rest.
-  if (measures_harmonics(x))
-    return run_frequency(frequency, amplitude, runs_points(x) ? x.start : FrequencyStart::carried);
-  run_free_decay();
-  return {};
+  begin_frequency(frequency, amplitude, runs_points(x) ? x.start : FrequencyStart::carried);
+}
+
+FrequencyPoint FrequencyRun::run_point(double frequency, double amplitude) {
+  if (!measures_harmonics(scene_.excitation)) {
+    run_free_decay();
+    return {};
+  }
+  begin_point(frequency, amplitude);
+  run_until(ongoing_->max_periods);
+  return finish();
 }
 
 void FrequencyRun::run_free_decay() {

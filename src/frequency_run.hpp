@@ -49,13 +49,18 @@ class FrequencyRun {
   // says; whole periods until converged or
   // settle.max_periods (or the fixed number of periods of a `sine` or a prescribed duration).
   FrequencyPoint run_frequency(double frequency, double amplitude, FrequencyStart start);
-  // Runs `more` further periods of the frequency run last (no more than its max_periods) and
-  // judges all its periods again: the driver asks for them while the realisations of a point
-  // do not yet agree. periods_left() says how many it may still run; run_period() runs one
-  // without judging (extend(0) judges).
-  FrequencyPoint extend(int more);
-  void run_period();
-  int periods_left() const;
+  // The same in steps, for a driver that looks at a point's fills together: begin_frequency()
+  // starts it (configure, predicted start); run_until(n) runs periods until the point is done
+  // on its own (converged to the tolerance, or max_periods: returns true) or has n periods;
+  // judge() says what its periods show now; look(floors) judges them with the floors that the
+  // fills' spread allows (known_at_look()) and, when they pass, keeps those floors for
+  // finish(), which ends the point.
+  void begin_frequency(double frequency, double amplitude, FrequencyStart start);
+  void begin_point(double frequency, double amplitude);  // started as run_point() starts it
+  bool run_until(int periods);
+  Stationary judge() const;
+  bool look(const Floors& floors);
+  FrequencyPoint finish();
   // Periods of the frequency now running, for other threads to read while it runs: 0 before
   // run_frequency() and once a point is returned (its Stationary::periods has the count then).
   int periods_running() const { return periods_running_.load(std::memory_order_relaxed); }
@@ -85,6 +90,8 @@ class FrequencyRun {
 
  private:
   double first_mode() const;
+  void run_period();  // one period, not judged
+  std::pair<std::vector<std::complex<double>>, SteadyStateCriteria> measured() const;
   int configure(double frequency, double amplitude);
   void step();
   // Runs `change` (a jump of the state: a new drive, a predicted start) and counts the energy
@@ -101,11 +108,10 @@ class FrequencyRun {
     int settled_from = 0;  // periods of the predicted start's refinement (warm-up)
     bool fixed = false, prescribed = false;
     PeriodTracker tracker;
+    Floors floors;  // the half-widths a look found enough (none: the tolerance's)
   };
   std::optional<Ongoing> ongoing_;
   std::atomic<int> periods_running_{0};
-  Stationary judge() const;
-  FrequencyPoint finish();  // the point from the periods so far; the impedance learned from them
 
   const Scene& scene_;
   CoupledSystem system_;

@@ -20,7 +20,10 @@ using Clock = std::chrono::steady_clock;
 // or frequency 0 while its bed settles. The ETA is the remaining work at the rate of the work
 // done since the beds settled (how long a bed takes to come to rest is not known in advance).
 // A steady-state frequency's fraction is its periods over max_periods, an upper bound that most
-// frequencies stop far below, so there only whole frequencies count towards the rate.
+// frequencies stop far below, so there only whole frequencies count towards the rate, unless
+// the driver models the work (set_work()): then work is simulated time, what finished points
+// took and what each task's running point has run so far against what the points still planned
+// are expected to take.
 class Progress {
  public:
   Progress(bool quiet, std::size_t tasks, double total, bool whole)
@@ -28,13 +31,16 @@ class Progress {
         tty_(isatty(fileno(stderr)) != 0),
         whole_(whole),
         done_(tasks, 0.0),
+        running_(tasks, 0.0),
         total_(total) {}
-  void update(std::size_t task, double done, double frequency) {
+  // `running_s`: the simulated time (s) the task's running point has run, where work is modelled.
+  void update(std::size_t task, double done, double frequency, double running_s = 0) {
     if (quiet_) return;
     std::lock_guard<std::mutex> lock(mutex_);
     const auto now = Clock::now();
     if (frequency > 0) {
       done_[task] = done;
+      running_[task] = running_s;
       if (!working_) working_ = true, work_start_ = now;
     }
     if (now - last_ < (tty_ ? std::chrono::milliseconds(250) : std::chrono::seconds(5))) return;
@@ -44,18 +50,31 @@ class Progress {
     if (frequency <= 0) {
       std::fprintf(stderr, "%ssettling the bed  elapsed %.0f s%s", tty_ ? "\r" : "", elapsed, end);
     } else {
-      double sum = 0, counted = 0;
+      double sum = 0, counted = 0, left = total_;
       for (double d : done_) sum += d, counted += whole_ ? std::floor(d) : d;
+      if (finished_s_ >= 0) {  // modelled: simulated seconds
+        double running = 0;
+        for (double r : running_) running += r;
+        sum = counted = finished_s_ + running;
+        left = sum + std::max(0.0, remaining_s_ - running);
+      }
       const double working = std::chrono::duration<double>(now - work_start_).count();
       std::fprintf(stderr, "%sf = %.3f Hz  %5.1f%%  elapsed %.0f s  ", tty_ ? "\r" : "", frequency,
-                   100 * std::min(1.0, sum / total_), elapsed);
+                   100 * std::min(1.0, sum / left), elapsed);
       if (counted > 0)
-        std::fprintf(stderr, "ETA %.0f s%s", working * std::max(0.0, total_ - counted) / counted,
+        std::fprintf(stderr, "ETA %.0f s%s", working * std::max(0.0, left - counted) / counted,
                      end);
       else
         std::fprintf(stderr, "ETA after the first %s%s", whole_ ? "frequency" : "steps", end);
     }
     std::fflush(stderr);
+  }
+  // The driver's model of the work, simulated seconds: what finished points took, and what
+  // the points still planned (the running ones whole) are expected to take.
+  void set_work(double finished_s, double remaining_s) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    finished_s_ = finished_s;
+    remaining_s_ = remaining_s;
   }
   // More work than planned: fills sent to a point that wants them.
   void add_total(double more) {
@@ -76,8 +95,8 @@ class Progress {
  private:
   bool quiet_, tty_, whole_, working_ = false;
   std::mutex mutex_;
-  std::vector<double> done_;
-  double total_;
+  std::vector<double> done_, running_;
+  double total_, finished_s_ = -1, remaining_s_ = 0;
   Clock::time_point start_ = Clock::now(), last_{}, work_start_{};
 };
 

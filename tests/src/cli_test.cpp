@@ -617,6 +617,37 @@ TEST_CASE("three realisations give the same periods on one job and on two") {
   CHECK(one.frf.amplitude == two.frf.amplitude);
 }
 
+// Fills that stop at a look (their own interval small beside the fills' spread, here where a
+// tolerance of 0.5 % would run them to max_periods) wait for the fills before them at each look:
+// one job and two, and a run stopped after its first point and resumed, give the same file.
+TEST_CASE("fills stopped at looks: the same on one job, on two, and resumed") {
+  Sandbox box;
+  std::string near = tiny_deck(
+      box, "looks.toml", "frequencies = [15.0, 16.0]\nsettle = { min_periods = 3, max_periods = 4",
+      "frequencies = [15.5, 16.0]\nsettle = { tolerance = 0.005, max_realisations = 4, "
+      "min_periods = 3, max_periods = 100");
+  REQUIRE(
+      box.shell("sed -i -e 's/count = 20/count = 50/' -e 's/^amplitude = 1.0/amplitude = 0.3/' " +
+                near) == 0);
+  std::string log;
+  REQUIRE(box.pdsim("run --threads 1 -o one.h5 " + near, &log) == 0);
+  CAPTURE(log);
+  CHECK(log.find("settled to a third of the fills' spread") != std::string::npos);
+  REQUIRE(box.pdsim("run --quiet --threads 2 -o two.h5 " + near) == 0);
+  REQUIRE(box.pdsim("run --quiet --threads 2 --stop-after 1 -o split.h5 " + near) == 0);
+  REQUIRE(box.pdsim("run --quiet --threads 2 --resume -o split.h5 " + near) == 0);
+  const pdsim::Results one = pdsim::read_results((box.dir / "one.h5").string());
+  for (const char* other : {"two.h5", "split.h5"}) {
+    CAPTURE(other);
+    const pdsim::Results r = pdsim::read_results((box.dir / other).string());
+    CHECK(r.periods.amplitude == one.periods.amplitude);
+    CHECK(r.fills.amplitude == one.fills.amplitude);
+    CHECK(r.fills.amplitude_ci == one.fills.amplitude_ci);
+    CHECK(r.frf.amplitude == one.frf.amplitude);
+    CHECK(r.frf.result == one.frf.result);
+  }
+}
+
 TEST_CASE("SIGKILL at random moments never loses a finished frequency") {
   Sandbox box;
   const std::string slow = slow_deck(box, "slow.toml");

@@ -388,7 +388,7 @@ class Driver::Impl {
           if (pick == beds_.size() || reached_[r] < reached_[pick]) pick = r;
         }
         if (pick == beds_.size()) {
-          // The first fills never wait for a fill behind them, so a pause always ends.
+          // A fill waits only for fills before it, which never wait for it: a pause ends.
           if (!running && paused && !failure) {
             failure =
                 std::make_exception_ptr(SimulationError("fills wait for each other at a look"));
@@ -454,7 +454,21 @@ class Driver::Impl {
       if (done_[s]) finished.emplace_back(seen[s].amplitude, s);
     }
     std::sort(finished.begin(), finished.end());
-    // A finished point's (periods a fill, fills) interpolated at `amplitude`, in its logarithm.
+    // How the periods a fill needs grow with the amplitude: the slope of their logarithms over
+    // the finished points (least squares, 0 to 3; about 2 below the Saeki resonance).
+    double slope = 0;
+    if (finished.size() >= 2) {
+      double sx = 0, sy = 0, sxx = 0, sxy = 0;
+      for (const auto& [a, s] : finished) {
+        const double x = std::log(a), y = std::log(seen[s].periods);
+        sx += x, sy += y, sxx += x * x, sxy += x * y;
+      }
+      const double n = double(finished.size()), det = n * sxx - sx * sx;
+      if (det > 0) slope = std::clamp((n * sxy - sx * sy) / det, 0.0, 3.0);
+    }
+    // A finished point's (periods a fill, fills) interpolated at `amplitude`, in its logarithm;
+    // above every finished point, the periods grown by that slope (at most max_periods) and
+    // every fill: nearer resonance than any point yet.
     auto learned = [&](double amplitude) -> std::pair<double, double> {
       if (finished.empty()) return {double(excitation().settle.min_periods), double(fills_min_)};
       auto at = [&](std::size_t k) {
@@ -464,7 +478,11 @@ class Driver::Impl {
       const auto above = std::lower_bound(finished.begin(), finished.end(),
                                           std::make_pair(amplitude, std::size_t(0)));
       if (above == finished.begin()) return at(0);
-      if (above == finished.end()) return at(finished.size() - 1);
+      if (above == finished.end()) {
+        const double grown =
+            at(finished.size() - 1).first * std::pow(amplitude / finished.back().first, slope);
+        return {std::min(grown, double(excitation().settle.max_periods)), double(fills_max_)};
+      }
       const auto k = static_cast<std::size_t>(above - finished.begin());
       const double a0 = std::log(finished[k - 1].first), a1 = std::log(above->first);
       const double w = a1 > a0 ? (std::log(amplitude) - a0) / (a1 - a0) : 1.0;

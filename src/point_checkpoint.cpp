@@ -83,8 +83,8 @@ const std::vector<PointField> kPointFields = [] {
   // Kept since fills stop at looks (by_spread) and a drift at the cap can count (drift).
   fields.push_back(PDSIM_POINT_FIELD(judged.by_spread, from_bool, to_bool,
                                      [](FrequencyPoint& p) { p.judged.by_spread = false; }));
-  fields.push_back(
-      PDSIM_POINT_FIELD(judged.drift, same, same, [](FrequencyPoint& p) { p.judged.drift = 0; }));
+  fields.push_back(PDSIM_POINT_FIELD(judged.drift, same, same,
+                                     [](FrequencyPoint& p) { p.judged.drift = std::nan(""); }));
   return fields;
 }();
 #undef PDSIM_POINT_FIELD

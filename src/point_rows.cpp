@@ -16,7 +16,7 @@ Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const ExcitationSp
   std::vector<FillValue> fills;
   for (const FrequencyPoint& p : runs)
     fills.push_back({p.judged.mean, p.judged.amplitude_ci, p.judged.phase_ci, p.judged.batches - 1,
-                     settled(p.judged), p.judged.trend ? p.judged.drift : std::nan("")});
+                     settled(p.judged), p.judged.drift});
   const bool last = static_cast<int>(runs.size()) >= x.settle.max_realisations;
   Ensemble e = judge_ensemble(fills, x.settle.tolerance, last);
   if (fixed_duration(x)) {

@@ -426,10 +426,12 @@ GroupMean group_mean(const std::vector<FillValue>& fills, const std::vector<int>
 }  // namespace
 
 Ensemble judge_ensemble(const std::vector<FillValue>& given, double tolerance, bool last) {
-  // A fill still drifting at max_periods counts when its drift is small beside the fills'
-  // spread, with its whole fitted change over its retained periods added to its half-width: its
-  // mean lies half that change from where the drift ended, and the state it was heading for
-  // lies beyond, by an amount that the change bounds while the climb slows.
+  // A fill still moving at max_periods (drifting, or too slow a wander for two batches) counts
+  // when its fitted change over its retained periods is small beside the fills' spread, with
+  // that whole change added to its half-width: its mean lies half the change from where it
+  // ended, and the state it was heading for lies beyond, by an amount the change bounds while
+  // a climb slows. A wander too slow for an interval keeps none (its value counts through the
+  // spread, as a fill held still with a wide interval does).
   std::vector<FillValue> fills = given;
   std::vector<std::complex<double>> values;
   for (const FillValue& f : given) values.push_back(f.harmonic);

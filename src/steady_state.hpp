@@ -117,8 +117,8 @@ struct FillValue {
   double amplitude_ci = 0, phase_ci = 0;  // its unit, rad
   int dof = 0;
   bool settled = false;
-  // A fill drifting at max_periods: its amplitude's fitted change over its retained periods
-  // (Stationary::drift); NaN for a fill that does not drift.
+  // A fill not settled at max_periods (drifting, or too correlated for two batches): its
+  // amplitude's fitted change over its retained periods (Stationary::drift); NaN: unknown.
   double drift = std::numeric_limits<double>::quiet_NaN();
 };
 
@@ -156,10 +156,11 @@ struct Ensemble {
   bool wants_fills = false;
   std::string reason;  // why not a result, or what the branches are ("" for one state)
 };
-// Result rules: every fill must have settled on its own, or drifted at max_periods by no more
-// than kSpreadFraction of the spread of the fills' amplitudes (it then counts with that drift
-// added to its half-width: its value lies within the drift of where the fill was heading);
-// else not a result (a fill still drifting at max_periods by more); then one state when the
+// Result rules: every fill must have settled on its own, or moved over its retained periods at
+// max_periods (drifting, or wandering too slowly for two batches) by no more than
+// kSpreadFraction of the spread of the fills' amplitudes (it then counts with that change added
+// to its half-width: its value lies within it of where the fill was heading); else not a result
+// (a fill still moving at max_periods by more); then one state when the
 // ensemble mean amplitude's interval meets `tolerance` (relative), several branches when there are
 // two or more and each branch's mean meets it (the ensemble mean then carries its wide interval).
 // With `last` (no more fills will come: settle.max_realisations reached), fills that are distinct

@@ -422,6 +422,13 @@ TEST_CASE("ensemble: a fill drifting at the cap counts when its drift is small b
   const Ensemble large = judge_ensemble(fills, 2e-2, true);
   CHECK(large.result == PointResult::none);
   CHECK(large.reason.find("1 of 4 fills not settled") != std::string::npos);
+  // A wander too slow for two batches (no interval of its own) that moved little counts
+  // through the spread, its half-width still unknown.
+  fills[3].amplitude_ci = kInfinity;
+  fills[3].drift = 0.02 * std::abs(kTruth);
+  const Ensemble slow = judge_ensemble(fills, 2e-2, true);
+  CHECK(slow.result == PointResult::branches);
+  CHECK(std::isinf(slow.fills[3].amplitude_ci));
 }
 
 // Allocation by variance, on synthetic dampers whose truth is known: fill i holds the level

@@ -607,6 +607,7 @@ class Driver::Impl {
       results_.energy = run.energy();
       results_.particles = run.particles();
     }
+    progress_->update(r, double(k + 1), frequencies_[k], 0.0);  // its time is in simulated_ now
     const bool catching_up = r >= static_cast<std::size_t>(want_[k]);
     progress_->say(describe(*points_[r][k], r) + (catching_up ? " (catching up)" : ""));
   }

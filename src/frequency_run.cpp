@@ -10,7 +10,7 @@ namespace pdsim {
 std::atomic<bool> g_stop_runs{false};
 
 namespace {
-// The predicted start's refinement: rounds of a few periods each (see run_frequency).
+// The predicted start's refinement: rounds of a few periods each (see begin_frequency).
 constexpr int kRefinements = 4, kProbePeriods = 3;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 }  // namespace
@@ -250,13 +250,6 @@ bool FrequencyRun::look(const Floors& floors) {
   if (known_at_look(series, criteria)) return true;
   o.floors = {};
   return false;
-}
-
-FrequencyPoint FrequencyRun::run_frequency(double frequency, double amplitude,
-                                           FrequencyStart start) {
-  begin_frequency(frequency, amplitude, start);
-  run_until(ongoing_->max_periods);
-  return finish();
 }
 
 void FrequencyRun::begin_frequency(double frequency, double amplitude, FrequencyStart start) {

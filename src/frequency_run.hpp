@@ -45,30 +45,27 @@ class FrequencyRun {
   // Lets the particles settle under gravity, containers at rest (scene.bed); time stands still.
   BedReport settle_bed();
 
-  // Runs `frequency` (Hz) at the drive's `amplitude` (see point_amplitude()) starting as `start`
-  // says; whole periods until converged or
-  // settle.max_periods (or the fixed number of periods of a `sine` or a prescribed duration).
-  FrequencyPoint run_frequency(double frequency, double amplitude, FrequencyStart start);
-  // The same in steps, for a driver that looks at a point's fills together: begin_frequency()
+  // One point of the scene's excitation: `frequency` at the drive's `amplitude` (see
+  // point_amplitude()), started as excitation.start says (a sine from the bed at rest), whole
+  // periods until converged or settle.max_periods (or the fixed number of periods of a `sine`
+  // or a prescribed duration); or the free decay (an empty point; see measures_harmonics()).
+  FrequencyPoint run_point(double frequency, double amplitude);
+  // The same in steps, for a driver that looks at a point's fills together: begin_point()
   // starts it (configure, predicted start); run_until(n) runs periods until the point is done
   // on its own (converged to the tolerance, or max_periods: returns true) or has n periods;
   // judge() says what its periods show now; look(floors) judges them with the floors that the
   // fills' spread allows (known_at_look()) and, when they pass, keeps those floors for
   // finish(), which ends the point.
-  void begin_frequency(double frequency, double amplitude, FrequencyStart start);
-  void begin_point(double frequency, double amplitude);  // started as run_point() starts it
+  void begin_point(double frequency, double amplitude);
   bool run_until(int periods);
   Stationary judge() const;
   bool look(const Floors& floors);
   FrequencyPoint finish();
   // Periods of the frequency now running, for other threads to read while it runs: 0 before
-  // run_frequency() and once a point is returned (its Stationary::periods has the count then).
+  // begin_point() and once a point is returned (its Stationary::periods has the count then).
   int periods_running() const { return periods_running_.load(std::memory_order_relaxed); }
   // A free decay: `duration` seconds of time history from the initial displacement.
   void run_free_decay();
-  // One point of the scene's excitation: `frequency` started as excitation.start says (a sine
-  // from the bed at rest), or the free decay (an empty point; see measures_harmonics()).
-  FrequencyPoint run_point(double frequency, double amplitude);
 
   // Time series (and /energy when asked for) recorded so far.
   const TimeSeries& timeseries() const { return timeseries_; }
@@ -90,6 +87,8 @@ class FrequencyRun {
 
  private:
   double first_mode() const;
+  // Starts `frequency` (Hz) at the drive's `amplitude` (see point_amplitude()) as `start` says.
+  void begin_frequency(double frequency, double amplitude, FrequencyStart start);
   void run_period();  // one period, not judged
   std::pair<std::vector<std::complex<double>>, SteadyStateCriteria> measured() const;
   int configure(double frequency, double amplitude);

@@ -273,7 +273,10 @@ TEST_CASE("independent frequencies stopped and resumed keep every point and time
   const pdsim::Results a = pdsim::read_results((box.dir / "whole.h5").string());
   const pdsim::Results b = pdsim::read_results((box.dir / "split.h5").string());
   CHECK(a.meta_text.at("start") == "independent");
-  CHECK(a.frf.realisations == std::vector<int>{2, 2, 2});
+  // Two fills start each point; a fill too short for an interval that moved little counts
+  // (the cap rule), so a point may ask for more: the same in both runs.
+  CHECK(a.frf.realisations == b.frf.realisations);
+  for (int fills : a.frf.realisations) CHECK(fills >= 2);
   CHECK(a.frf.frequency == std::vector<double>{15.0, 16.0, 17.0});
   CHECK(a.frf.amplitude == b.frf.amplitude);
   CHECK(a.timeseries.time == b.timeseries.time);
@@ -611,7 +614,8 @@ TEST_CASE("three realisations give the same periods on one job and on two") {
   const pdsim::Results two = pdsim::read_results((box.dir / "two.h5").string());
   CHECK(one.meta_numbers.at("jobs") == 1);
   CHECK(two.meta_numbers.at("jobs") == 2);
-  CHECK(one.frf.realisations == std::vector<int>{3, 3});
+  CHECK(one.frf.realisations == two.frf.realisations);
+  for (int fills : one.frf.realisations) CHECK(fills >= 3);
   CHECK(one.periods.realisation == two.periods.realisation);
   CHECK(one.periods.amplitude == two.periods.amplitude);
   CHECK(one.frf.amplitude == two.frf.amplitude);

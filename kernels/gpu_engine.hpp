@@ -356,7 +356,9 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     }
     neighbours_.fill_bytes(0xff, exec_);
     partner_id_.fill_bytes(0xff, exec_);
+    partner_id_old_.fill_bytes(0xff, exec_);  // the first rebuild swaps them
     neighbour_count_.fill_bytes(0, exec_);
+    neighbour_count_old_.fill_bytes(0, exec_);
     reverse_.fill_bytes(0xff, exec_);
     reverse_count_.fill_bytes(0, exec_);
     incoming_.fill_bytes(0, exec_);

@@ -18,7 +18,8 @@ namespace pdsim {
 
 // ---- sizes --------------------------------------------------------------------------------------
 
-// Both backends index slots with int32 and pack reverse entries (see reverse_entry()).
+// Both backends index slots with int32 and pack reverse entries (see reverse_entry()); the
+// values of a slot (3 or 9 per slot) are addressed in 64 bits (load3()), past 2^31 here.
 inline void check_particle_count(int count, int max_neighbours) {
   if (count > kMaxParticles ||
       static_cast<long long>(count) * max_neighbours > std::numeric_limits<std::int32_t>::max())

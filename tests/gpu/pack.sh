@@ -27,15 +27,19 @@ for program in pdsim pdsim_kernels_tests; do
   strip -o "$pack/bin/$program" "$build/$program"
 done
 # Every library the loader resolves, but glibc's (the machine's own, newer: Debian 12 builds
-# need glibc 2.36) and the CUDA driver (the machine's, matching its kernel module).
+# need glibc 2.36) and the CUDA driver (the machine's, matching its kernel module). The C++
+# runtime apart, in lib/cxx: run.sh takes it only where the machine's is older than the build's.
+mkdir -p "$pack/lib/cxx"
 ldd "$pack"/bin/* | awk '/=> \// {print $3}' | sort -u | while read -r library; do
   case $(basename "$library") in
-    libc.so* | libm.so* | libdl.so* | libpthread.so* | librt.so* | ld-linux* | libcuda.so*) ;;
+    libc.so* | libm.so* | libdl.so* | libpthread.so* | librt.so* | libresolv.so* | ld-linux* | \
+      libcuda.so*) ;;
+    libstdc++.so* | libgcc_s.so*) cp -L "$library" "$pack/lib/cxx/" ;;
     *) cp -L "$library" "$pack/lib/" ;;
   esac
 done
 # The pack alone: with only its libraries and glibc on the path, nothing is missing.
-if LD_LIBRARY_PATH=$pack/lib ldd "$pack"/bin/* | grep "not found"; then
+if LD_LIBRARY_PATH=$pack/lib:$pack/lib/cxx ldd "$pack"/bin/* | grep "not found"; then
   echo "pack.sh: the pack lacks the libraries above" >&2
   exit 1
 fi
@@ -45,7 +49,7 @@ fi
   echo "flags -DPDSIM_NATIVE=OFF, CUDA architectures 90-real;90-virtual, $(nvcc --version | tail -1)"
   echo "glibc needed $(objdump -T "$pack"/bin/* "$pack"/lib/* 2>/dev/null |
     grep -o 'GLIBC_[0-9.]*' | sort -V | tail -1)"
-  (cd "$pack" && du -b bin/* lib/*)
+  (cd "$pack" && du -b bin/* lib/*.so* lib/cxx/*)
 } >"$pack/manifest.txt"
 
 # What travels: the tracked and untracked files that git does not ignore, and the pack.

@@ -70,7 +70,13 @@ if [ ! -x "$pack/bin/pdsim" ] || [ ! -x "$pack/bin/pdsim_kernels_tests" ]; then
   say "FAIL     no pack: run tests/gpu/pack.sh here first, and carry gpu_pack"
   exit 1
 fi
+# The machine's C++ runtime where it is as new as the build's (tools that compute-sanitizer loads
+# into the process may need the newer one), else the pack's.
 export LD_LIBRARY_PATH=$pack/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
+if ldd "$pack"/bin/* | grep -q "not found"; then
+  LD_LIBRARY_PATH=$pack/lib/cxx:$LD_LIBRARY_PATH
+  echo "the machine's C++ runtime is older than the build's: the pack's" >"$work/cxx.log"
+fi
 export PATH=$pack/bin:$PATH
 cat "$pack/manifest.txt" >"$work/pack.log" 2>/dev/null
 missing=$(ldd "$pack"/bin/* | grep "not found" | sort -u)

@@ -18,7 +18,8 @@ namespace pdsim {
 
 // ---- sizes --------------------------------------------------------------------------------------
 
-// Both backends index slots with int32 and pack reverse entries (see reverse_entry()).
+// Both backends index slots with int32 and pack reverse entries (see reverse_entry()); the
+// values of a slot (3 or 9 per slot) are addressed in 64 bits (load3()), past 2^31 here.
 inline void check_particle_count(int count, int max_neighbours) {
   if (count > kMaxParticles ||
       static_cast<long long>(count) * max_neighbours > std::numeric_limits<std::int32_t>::max())
@@ -152,6 +153,20 @@ std::vector<T> live_history(std::vector<T> history, const std::vector<Mask>& mas
   return history;
 }
 
+// List slots past a particle's count (padded(count) for the forward lists) hold whatever the
+// last build left there, never read; a checkpoint holds -1 there, so that equal states save
+// equal bytes whatever the backend's memory held before.
+inline std::vector<std::int32_t> live_slots(std::vector<std::int32_t> list,
+                                            const std::vector<std::int32_t>& count, int slots,
+                                            bool padded_list) {
+  for (std::size_t i = 0; i < count.size() && !list.empty(); ++i) {
+    const int used = std::clamp(padded_list ? padded(count[i]) : count[i], 0, slots);
+    const auto begin = list.begin() + static_cast<std::ptrdiff_t>(i) * slots;
+    std::fill(begin + used, begin + slots, -1);
+  }
+  return list;
+}
+
 // A file stores a reverse entry as the flat slot owner * slots + k (-1 where unused;
 // check_particle_count keeps it in int32), the engines as a packed reverse_entry().
 inline std::vector<std::int32_t> flat_reverse(const std::vector<std::int32_t>& entries, int slots) {
@@ -172,7 +187,10 @@ inline StateArrays to_arrays(EngineCheckpoint c) {
   c.history = live_history(std::move(c.history), c.neighbour_mask, c.max_neighbours);
   c.wall_history = live_history(std::move(c.wall_history), c.wall_mask, kWallSlots);
   c.wall_key = live_history(std::move(c.wall_key), c.wall_mask, kWallSlots, 1);
-  c.reverse = flat_reverse(c.reverse, c.max_neighbours);
+  const int m = c.max_neighbours;
+  c.neighbours = live_slots(std::move(c.neighbours), c.neighbour_count, m, true);
+  c.partner_id = live_slots(std::move(c.partner_id), c.neighbour_count, m, false);
+  c.reverse = flat_reverse(live_slots(std::move(c.reverse), c.reverse_count, m, false), m);
   StateArrays out;
   for_each_array(c,
                  [&](const CheckpointField& f, auto& values) { out[f.name] = std::move(values); });

@@ -188,14 +188,25 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
   }
 
   const StepTotals& compute(const ContainerKinematics& container, double dt) override {
-    if (needs_rebuild_) rebuild(container);
-    dt_ = dt;
-    const int blocks = blocks_for(count_);
-    const int next = current_ ^ 1;
-    step_(this->step_args(container, dt, state_[current_], state_[next], history_[current_],
-                          history_[next], pair_load_.data()),
-          block_totals_.data(), blocks, exec_);
-    totals_ = exec_.sum_blocks(block_totals_.data(), blocks, overflow_.data());
+    if (!failure_.empty())
+      throw SimulationError("the " + exec_.name() + " engine failed earlier (" + failure_ +
+                            ") and cannot go on from its arrays; restore() or set_particles() "
+                            "start it again");
+    try {
+      if (needs_rebuild_) rebuild(container);
+      dt_ = dt;
+      const int blocks = blocks_for(count_);
+      const int next = current_ ^ 1;
+      step_(this->step_args(container, dt, state_[current_], state_[next], history_[current_],
+                            history_[next], pair_load_.data()),
+            block_totals_.data(), blocks, exec_);
+      totals_ = exec_.sum_blocks(block_totals_.data(), blocks, overflow_.data());
+    } catch (const std::exception& e) {
+      // A device reports a kernel's fault at the next wait, by when a rebuild may have swapped
+      // half the arrays.
+      failure_ = e.what();
+      throw;
+    }
     if (totals_.flags & kNeighbourOverflow)
       throw SimulationError(neighbour_overflow_message(max_neighbours_));
     return totals_;
@@ -242,6 +253,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     clear_history();
     exec_.synchronize();  // the uploads read host memory that is about to go away
     needs_rebuild_ = true;
+    failure_.clear();
   }
 
   StateArrays save() const override {
@@ -289,6 +301,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     reverse_count_.upload(c.reverse_count, exec_, "reverse_count");
     overflow_.fill_bytes(0, exec_);
     exec_.synchronize();  // the uploads read host memory that is about to go away
+    failure_.clear();
   }
 
   std::size_t bytes_per_particle() const override {
@@ -356,7 +369,9 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
     }
     neighbours_.fill_bytes(0xff, exec_);
     partner_id_.fill_bytes(0xff, exec_);
+    partner_id_old_.fill_bytes(0xff, exec_);  // the first rebuild swaps them
     neighbour_count_.fill_bytes(0, exec_);
+    neighbour_count_old_.fill_bytes(0, exec_);
     reverse_.fill_bytes(0xff, exec_);
     reverse_count_.fill_bytes(0, exec_);
     incoming_.fill_bytes(0, exec_);
@@ -437,6 +452,7 @@ class GpuEngine final : private WithExec<Exec>, public EngineCore<ExecArray<Exec
 
   StepFn step_ = nullptr;
   int current_ = 0;
+  std::string failure_;  // why compute() failed, until the state is set again
   Array<double> radius_next_, inv_mass_next_, inv_inertia_next_;  // rebuild scratch
   Array<std::int32_t> id_next_, partner_id_old_, neighbour_count_old_;
   Array<double> pair_load_;

@@ -208,7 +208,8 @@ PDSIM_HD bool build_neighbours_of(int i, const NeighbourBuildArgs& a) {
       }
       if (from < 0) continue;
       for (int c = 0; c < 3; ++c)
-        a.new_history[3 * (a.slot_start[i] + k) + c] = sign * a.old_history[3 * from + c];
+        a.new_history[3 * (std::int64_t{a.slot_start[i]} + k) + c] =
+            sign * a.old_history[3 * std::int64_t{from} + c];
       mask |= std::uint64_t{1} << k;
     }
     a.new_mask[i] = mask;

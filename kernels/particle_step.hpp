@@ -23,10 +23,12 @@
 
 namespace pdsim {
 
-PDSIM_HD Vec3 load3(const double* a, int k) {
+// Slot and value offsets are 64-bit: a slot index fits int32 (check_particle_count), but 3 or 9
+// values per slot do not at the counts a GPU holds.
+PDSIM_HD Vec3 load3(const double* a, std::int64_t k) {
   return {a[3 * k], a[3 * k + 1], a[3 * k + 2]};
 }
-PDSIM_HD void store3(double* a, int k, Vec3 v) {
+PDSIM_HD void store3(double* a, std::int64_t k, Vec3 v) {
   a[3 * k] = v.x;
   a[3 * k + 1] = v.y;
   a[3 * k + 2] = v.z;
@@ -176,14 +178,14 @@ PDSIM_HD ContactOutcome pair_contact(int i, int s, Vec3& xi, const ParticleStepA
 // A pair's loads in its forward slot s, for the partner to gather (slot_loads() reads them).
 template <class V>
 PDSIM_HD void store_slot_loads(int s, const ParticleStepArgs& a, const ContactOutcome& l) {
-  double* slot = a.pair_load + pair_doubles<V>() * s;
+  double* slot = a.pair_load + pair_doubles<V>() * std::int64_t{s};
   store3(slot, 0, l.force);
   store3(slot, 1, l.torque);
   if constexpr (pair_doubles<V>() == 9) store3(slot, 2, l.partner_torque);
 }
 template <class V>
 PDSIM_HD ContactOutcome slot_loads(int s, const ParticleStepArgs& a) {
-  const double* slot = a.pair_load + pair_doubles<V>() * s;
+  const double* slot = a.pair_load + pair_doubles<V>() * std::int64_t{s};
   return {load3(slot, 0), load3(slot, 1), load3(slot, pair_doubles<V>() == 9 ? 2 : 1)};
 }
 

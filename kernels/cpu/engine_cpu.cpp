@@ -226,7 +226,8 @@ class CpuEngine final : public EngineCore<CpuArray> {
       std::copy_n(partner_id_.data() + from, n, c.partner_id.data() + to);
       std::copy_n(reverse_.data() + reverse_start_[i], reverse_count_[i], c.reverse.data() + to);
       if (variant_.history)
-        std::copy_n(h.neighbour.data() + 3 * from, 3 * n, c.history.data() + 3 * to);
+        std::copy_n(h.neighbour.data() + 3 * static_cast<std::size_t>(from), 3 * n,
+                    c.history.data() + 3 * to);
     }
     c.wall_history = h.wall;
     c.wall_mask = h.wall_mask;
@@ -265,7 +266,8 @@ class CpuEngine final : public EngineCore<CpuArray> {
       std::copy_n(c.partner_id.data() + from, n, partner_id_.data() + to);
       std::copy_n(c.reverse.data() + from, reverse_count_[i], reverse_.data() + reverse_start_[i]);
       if (variant_.history)
-        std::copy_n(c.history.data() + 3 * from, 3 * n, h.neighbour.data() + 3 * to);
+        std::copy_n(c.history.data() + 3 * from, 3 * n,
+                    h.neighbour.data() + 3 * static_cast<std::size_t>(to));
     }
   }
 

@@ -7,7 +7,10 @@
 
 #include <cub/device/device_radix_sort.cuh>
 
+#include <cstdlib>
+#include <mutex>
 #include <new>
+#include <string>
 #include <utility>
 
 #include "kernels/gpu_engine.hpp"
@@ -16,10 +19,54 @@ namespace pdsim {
 namespace gpu_engine {
 namespace {
 
-void check(cudaError_t status, const char* what) {
-  if (status != cudaSuccess)
-    throw SimulationError(std::string("CUDA ") + what + " failed: " + cudaGetErrorString(status));
+// The first fault of a kernel (an illegal address, a trap) that the CUDA runtime documents as
+// fatal to the process's context: every later CUDA call fails with it, so that later engines
+// and cuda_device_available() name it instead of failing for no reason of their own.
+// Engines may run on several host threads (run --jobs).
+std::mutex context_mutex;
+std::string context_lost_by;
+std::string context_lost() {
+  const std::lock_guard<std::mutex> lock(context_mutex);
+  return context_lost_by;
 }
+
+bool loses_context(cudaError_t status) {
+  switch (status) {
+    case cudaErrorIllegalAddress:
+    case cudaErrorLaunchTimeout:
+    case cudaErrorAssert:
+    case cudaErrorHardwareStackError:
+    case cudaErrorIllegalInstruction:
+    case cudaErrorMisalignedAddress:
+    case cudaErrorInvalidAddressSpace:
+    case cudaErrorInvalidPc:
+    case cudaErrorLaunchFailure:
+      return true;
+    default:
+      return false;
+  }
+}
+
+void check(cudaError_t status, const char* what) {
+  if (status == cudaSuccess) return;
+  std::string message = std::string("CUDA ") + what + " failed: " + cudaGetErrorString(status);
+  if (loses_context(status)) {
+    const std::lock_guard<std::mutex> lock(context_mutex);
+    if (context_lost_by.empty()) context_lost_by = message;
+    message +=
+        " (this process's CUDA context is lost: no later CUDA work can run in it; "
+        "PDSIM_CUDA_SYNC=1 names the kernel that failed)";
+  }
+  throw SimulationError(message);
+}
+
+// PDSIM_CUDA_SYNC=1: wait for and check every kernel as it is launched, so that a fault names
+// its kernel (otherwise it shows at the step's copy of its totals). For debugging: it serialises
+// the host with the device.
+const bool kSyncEachKernel = [] {
+  const char* value = std::getenv("PDSIM_CUDA_SYNC");
+  return value != nullptr && std::string(value) == "1";
+}();
 
 // ---- kernels ----------------------------------------------------------------------------------
 
@@ -154,6 +201,9 @@ class CudaExec {
   };
 
   CudaExec() {
+    if (const std::string lost = context_lost(); !lost.empty())
+      throw SimulationError("an earlier CUDA error lost this process's context (" + lost +
+                            "): no CUDA engine can start");
     int device = 0;
     check(cudaGetDevice(&device), "cudaGetDevice");
     cudaDeviceProp prop{};
@@ -175,11 +225,17 @@ class CudaExec {
   std::string name() const { return "cuda (" + device_name_ + ")"; }
   void synchronize() const { check(cudaStreamSynchronize(stream_), "cudaStreamSynchronize"); }
 
+  // After a launch: its launch error, and with PDSIM_CUDA_SYNC=1 its execution error.
+  void launched(const char* what) const {
+    check(cudaGetLastError(), what);
+    if (kSyncEachKernel) check(cudaStreamSynchronize(stream_), what);
+  }
+
   template <class F>
   void each(int count, const F& f, const char* what) const {
     if (count <= 0) return;
     each_kernel<F><<<blocks_for(count), kBlock, 0, stream_>>>(f, count);
-    check(cudaGetLastError(), what);
+    launched(what);
   }
 
   void sort_pairs(const Array<std::uint32_t>& key_in, Array<std::uint32_t>& key_out,
@@ -195,21 +251,23 @@ class CudaExec {
                                           key_out.data(), value_in.data(), value_out.data(), count,
                                           0, end_bit, stream_),
           "radix sort");
+    launched("radix sort");
   }
 
   template <class V>
   static void step(const ParticleStepArgs& args, ParticleContribution* block_totals, int blocks,
                    const CudaExec& e) {
     pair_kernel<PairLaws<V>><<<blocks, kBlock, 0, e.stream_>>>(args, block_totals);
+    e.launched("pair kernel");
     particle_kernel<V><<<blocks, kBlock, 0, e.stream_>>>(args, block_totals);
-    check(cudaGetLastError(), "step kernel launch");
+    e.launched("particle kernel");
   }
 
   ParticleContribution sum_blocks(const ParticleContribution* block_totals, int blocks,
                                   const int* overflow) {
     sum_blocks_kernel<<<1, kBlock, 0, stream_>>>(block_totals, blocks, overflow,
                                                  totals_device_.data());
-    check(cudaGetLastError(), "sum kernel launch");
+    launched("sum kernel");
     check(cudaMemcpyAsync(totals_host_, totals_device_.data(), sizeof(ParticleContribution),
                           cudaMemcpyDeviceToHost, stream_),
           "cudaMemcpyAsync (totals)");
@@ -239,6 +297,8 @@ bool cuda_device_available(std::string* description) {
     if (description) *description = why;
     return false;
   };
+  if (const std::string lost = gpu_engine::context_lost(); !lost.empty())
+    return fail("an earlier CUDA error lost this process's context: " + lost);
   int devices = 0;
   const cudaError_t status = cudaGetDeviceCount(&devices);
   if (status == cudaErrorInsufficientDriver)

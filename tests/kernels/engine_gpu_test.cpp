@@ -9,8 +9,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <memory>
+#include <string>
+#include <variant>
 #include <vector>
 
 #include "io/stl_mesh.hpp"
@@ -220,10 +224,17 @@ std::unique_ptr<DemEngine> make_cuda(const EngineConfig& c) {
   return make_engine(cuda);
 }
 
+// PDSIM_REQUIRE_CUDA=1 (tests/gpu/run.sh on a lent GPU): a CUDA device that is not usable is
+// a failure, not a skip, so that a wrong driver, library or architecture cannot pass.
+bool cuda_required() {
+  const char* value = std::getenv("PDSIM_REQUIRE_CUDA");
+  return value != nullptr && std::string(value) == "1";
+}
+
 // The engines that run the GPU orchestration: the host reference launcher always, CUDA where a
 // device is usable (otherwise said once per test).
 struct GpuEngine {
-  const char* name;
+  std::string name;
   std::unique_ptr<DemEngine> (*make)(const EngineConfig&);
 };
 std::vector<GpuEngine> gpu_engines() {
@@ -231,9 +242,46 @@ std::vector<GpuEngine> gpu_engines() {
   std::string description;
   if (cuda_device_available(&description))
     engines.push_back({"cuda", &make_cuda});
+  else if (cuda_required())
+    FAIL_CHECK("cuda required (PDSIM_REQUIRE_CUDA=1) but not usable: " << description);
   else
     MESSAGE("cuda skipped: no usable CUDA device (" << description << ")");
   return engines;
+}
+
+// A step's totals, every value; bitwise comparison (a NaN equals itself, -0 differs from 0).
+std::vector<std::uint64_t> bits_of(const StepTotals& t) {
+  const double values[] = {t.wall_force.x,  t.wall_force.y,     t.wall_force.z,
+                           t.wall_torque.x, t.wall_torque.y,    t.wall_torque.z,
+                           t.tally.normal,  t.tally.tangential, t.tally.rolling,
+                           t.tally.elastic, t.tally.spring_in,  t.tally.spring_out,
+                           t.kinetic,       t.speed_sq,         static_cast<double>(t.flags)};
+  std::vector<std::uint64_t> bits(std::size(values));
+  std::memcpy(bits.data(), values, sizeof(values));
+  return bits;
+}
+
+// Two checkpoint arrays hold the same type and the same bytes.
+bool same_bytes(const StateArray& a, const StateArray& b) {
+  if (a.index() != b.index()) return false;
+  return std::visit(
+      [&](const auto& values) {
+        const auto& other = std::get<std::decay_t<decltype(values)>>(b);
+        return values.size() == other.size() &&
+               (values.empty() ||
+                std::memcmp(values.data(), other.data(), values.size() * sizeof(values[0])) == 0);
+      },
+      a);
+}
+
+// Checkpoints equal array by array (each named in the failure), byte for byte.
+void check_same_checkpoint(const StateArrays& a, const StateArrays& b) {
+  REQUIRE(a.size() == b.size());
+  for (const auto& [name, values] : a) {
+    CAPTURE(name);
+    REQUIRE(b.count(name) == 1);
+    CHECK(same_bytes(values, b.at(name)));
+  }
 }
 
 const SceneSpec kScenes[] = {
@@ -251,6 +299,7 @@ TEST_CASE("cuda_device_available answers without a GPU or driver and make_engine
   bool available = true;
   REQUIRE_NOTHROW(available = cuda_device_available(&description));
   CHECK_FALSE(description.empty());  // the device name, or why there is none
+  if (cuda_required()) CHECK_MESSAGE(available, "PDSIM_REQUIRE_CUDA=1: " << description);
   if (!available) {
     EngineConfig c = make_scene(kScenes[0], Backend::cuda);
     CHECK_THROWS_AS(make_engine(c), InputError);
@@ -304,6 +353,79 @@ TEST_CASE("two runs of a gpu engine are bitwise identical") {
       REQUIRE(a.totals[n].tally.tangential == b.totals[n].tally.tangential);
       REQUIRE(a.totals[n].tally.rolling == b.totals[n].tally.rolling);
       REQUIRE(a.totals[n].wall_force.x == b.totals[n].wall_force.x);
+    }
+  }
+}
+
+// The CUDA kernels compute what the host reference launcher computes, in the same order and,
+// with --fmad=false, with the same roundings as this baseline x86-64 build: every step's totals
+// and the whole checkpoint must be equal bit for bit. On the host the reference runs against
+// itself, a fresh engine each, so that a value read before it is written (the host arrays start
+// as changing garbage) shows as a difference.
+TEST_CASE(
+    "the gpu engines equal the host reference bitwise for 1000 steps in every physics family") {
+  for (const GpuEngine& gpu : gpu_engines()) {
+    CAPTURE(gpu.name);
+    for (const SceneSpec& spec : kScenes) {
+      const EngineConfig config = make_scene(spec, Backend::cpu);
+      CAPTURE(variant_name(config));
+      auto reference = make_reference(config);
+      auto other = gpu.make(config);
+      const Trace expected = advance(*reference, 0, 1000);
+      const Trace trace = advance(*other, 0, 1000);
+      for (std::size_t n = 0; n < expected.totals.size(); ++n) {
+        CAPTURE(n);
+        REQUIRE(bits_of(trace.totals[n]) == bits_of(expected.totals[n]));
+      }
+      check_same_checkpoint(other->save(), reference->save());
+    }
+  }
+}
+
+// A checkpoint is what a run's OUT.partial and bed files hold: two equal runs must write the
+// same bytes, whatever memory the engine was given (on a GPU the last engine's, here the host
+// reference's changing garbage), and -1 in the list slots past each particle's count.
+TEST_CASE("two engines made one after the other save byte-identical checkpoints") {
+  std::vector<GpuEngine> engines = gpu_engines();
+  engines.insert(engines.begin(), {"cpu", &make_engine});
+  for (const GpuEngine& e : engines) {
+    CAPTURE(e.name);
+    for (const SceneSpec& spec : {kScenes[0], kScenes[3], kScenes[4]}) {
+      const EngineConfig config = make_scene(spec, Backend::cpu);
+      CAPTURE(variant_name(config));
+      // Checkpoints after 100, 200 and 300 steps (rebuilds in between swap the lists' arrays).
+      auto run = [&] {
+        auto engine = e.make(config);
+        std::vector<StateArrays> saved;
+        for (int n = 0; n < 300; n += 100) {
+          advance(*engine, n, 100);
+          saved.push_back(engine->save());
+        }
+        return saved;  // the engine and its memory go before the next one is made
+      };
+      const std::vector<StateArrays> first = run(), second = run();
+      for (std::size_t k = 0; k < first.size(); ++k) {
+        CAPTURE(k);
+        check_same_checkpoint(second[k], first[k]);
+      }
+      const StateArrays& last = first.back();
+      const auto m = static_cast<std::size_t>(state_value<std::int32_t>(last, "max_neighbours"));
+      const auto& count = state_values<std::int32_t>(last, "neighbour_count");
+      const auto& reverse_count = state_values<std::int32_t>(last, "reverse_count");
+      auto unused_hold_minus_one = [&](const std::string& name,
+                                       const std::vector<std::int32_t>& used, bool padded_list) {
+        CAPTURE(name);
+        const auto& list = state_values<std::int32_t>(last, name);
+        int wrong = 0;
+        for (std::size_t i = 0; i < used.size(); ++i)
+          for (std::size_t k = static_cast<std::size_t>(padded_list ? padded(used[i]) : used[i]);
+               k < m; ++k)
+            wrong += list[i * m + k] != -1;
+        CHECK(wrong == 0);
+      };
+      unused_hold_minus_one("neighbours", count, true);
+      unused_hold_minus_one("partner_id", count, false);
+      unused_hold_minus_one("reverse", reverse_count, false);
     }
   }
 }

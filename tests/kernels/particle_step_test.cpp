@@ -1,8 +1,10 @@
 // The per-particle step (kernels/particle_step.hpp): container walls (box and cylinder), the
-// blow-up guard flags and the vectorised neighbour-slot test.
+// blow-up guard flags, the vectorised neighbour-slot test and slot addressing at the largest
+// engine accepted.
 #include "kernels/particle_step.hpp"
 
 #include <doctest/doctest.h>
+#include <sys/mman.h>
 
 #include <algorithm>
 #include <cmath>
@@ -10,6 +12,7 @@
 #include <memory>
 #include <vector>
 
+#include "kernels/engine_core.hpp"
 #include "kernels/neighbours.hpp"
 #include "tests/kernels/dem_fixtures.hpp"
 
@@ -246,6 +249,39 @@ TEST_CASE("neighbour slot test agrees with direct distances") {
       false);
   check_touching_slots<Variant<HertzNormal, NoTangential, false, false, true, WallShape::box>>(
       true);
+}
+
+// The largest engine check_particle_count accepts (kMaxParticles particles of 64 slots, the
+// most a list holds) puts its last slot's values 3 x 2^31 and 9 x 2^31 doubles from the start
+// of its history and pair-load arrays: past int32, where a 32-bit product wraps. The arrays
+// are address space only (MAP_NORESERVE); the pages around the last slot are touched.
+TEST_CASE("the last slot of the largest engine accepted holds its history and pair loads") {
+  constexpr int kSlots = 64;
+  REQUIRE_NOTHROW(check_particle_count(kMaxParticles, kSlots));
+  CHECK_THROWS_AS(check_particle_count(kMaxParticles + 1, kSlots), SimulationError);
+  const std::int64_t slots = std::int64_t{kMaxParticles} * kSlots;
+  REQUIRE(slots == 2147483584);  // 2^31 - 64
+  const int last = static_cast<int>(slots - 1);
+  using V = Variant<HertzNormal, MindlinHistory, false, false, true, WallShape::box>;
+  static_assert(pair_doubles<V>() == 9, "the widest pair loads");
+  const std::size_t bytes = static_cast<std::size_t>(slots) * 9 * sizeof(double);
+  void* memory = mmap(nullptr, bytes, PROT_READ | PROT_WRITE,
+                      MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+  REQUIRE(memory != MAP_FAILED);
+  double* values = static_cast<double*>(memory);
+
+  store3(values, last, {1, 2, 3});  // a history slot: 3 values
+  CHECK(values[3 * std::int64_t{last}] == 1);
+  CHECK(values[3 * std::int64_t{last} + 2] == 3);
+  CHECK(load3(values, last).y == 2);
+
+  ParticleStepArgs a{};
+  a.pair_load = values;
+  store_slot_loads<V>(last, a, {{4, 5, 6}, {7, 8, 9}, {10, 11, 12}});
+  CHECK(values[9 * std::int64_t{last}] == 4);
+  CHECK(values[9 * std::int64_t{last} + 8] == 12);
+  CHECK(slot_loads<V>(last, a).partner_torque.z == 12);
+  munmap(memory, bytes);
 }
 
 }  // namespace

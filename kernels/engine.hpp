@@ -11,6 +11,7 @@
 
 #include "kernels/contact_laws.hpp"
 #include "kernels/neighbours.hpp"
+#include "kernels/nonsmooth.hpp"
 #include "kernels/shapes.hpp"
 #include "kernels/step_args.hpp"
 #include "kernels/state_arrays.hpp"
@@ -36,6 +37,8 @@ struct EngineConfig {
   Orientation orientation;  // the container's axes at rest
   std::optional<Vec3> gravity;
   ContactParams contact;
+  // Rigid contacts (kernels/nonsmooth.hpp) instead of the penalty laws above: the CPU backend.
+  std::optional<NonsmoothParams> nonsmooth;
   double dt = 0;                         // s
   double skin = 0;                       // m, Verlet skin (0 = 0.15 x smallest diameter)
   std::vector<ParticleState> particles;  // initial state, world frame
@@ -77,6 +80,16 @@ class DemEngine {
   virtual void restore(const StateArrays& state) = 0;
   virtual std::size_t bytes_per_particle() const = 0;
 };
+
+// What the non-smooth steps of this process have cost their solver so far (all engines).
+struct SolverTotals {
+  long long steps = 0, iterations = 0;
+  long long contacts = 0;     // summed over the steps
+  long long capped = 0;       // steps that ended at the iteration cap
+  int most = 0;               // iterations of the longest step
+  double worst_residual = 0;  // m/s, the largest a step ended with
+};
+SolverTotals nonsmooth_totals();
 
 // Throws InputError if the backend is unavailable (e.g. "cuda" without a GPU).
 std::unique_ptr<DemEngine> make_engine(const EngineConfig& config);

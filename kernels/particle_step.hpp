@@ -252,13 +252,14 @@ PDSIM_HD void container_offset(Vec3 x, const ParticleStepArgs& a, Vec3& offset, 
              dot(offset, a.container.axis_z)};
 }
 
-// The walls that particle i (near them: it passed the bounding test) touches: f(slot, had,
-// gap, normal) for each, `slot` its history's (held before this step when `had`), `normal` in
-// the world frame, pointing into the container. Marks the slots in the history's output mask.
-// Flags a centre further than one radius outside the container, and a particle touching more
-// features of a mesh than it has slots.
+// The walls within `reach` of particle i's centre (near them: it passed the bounding test):
+// f(slot, had, gap, normal) for each, `slot` its history's (held before this step when `had`),
+// `gap` the centre's distance, `normal` in the world frame, pointing into the container. Marks
+// the slots in the history's output mask. Flags a centre further than one radius outside the
+// container, and a particle near more features of a mesh than it has slots.
 template <class V, class F>
-PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribution& sum, F&& f) {
+PDSIM_HD void walls_within(int i, double reach, const ParticleStepArgs& a,
+                           ParticleContribution& sum, F&& f) {
   using Shape = ShapeOf<V::kShape>;
   constexpr bool history = V::Tangential::kHistory;
   const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;
@@ -277,11 +278,11 @@ PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribut
   if constexpr (history) had = a.history.wall_mask_in[i];
   if constexpr (!Shape::kKeyed) {
     auto wall = [&](int slot, double gap, Vec3 local_normal) {
-      if (gap >= radius) return;
+      if (gap >= reach) return;
       touched = static_cast<std::uint8_t>(touched | (1u << slot));
       f(slot, (had >> slot & 1u) != 0, gap, world(local_normal));
     };
-    Shape::walls(local, radius, a.geometry, wall, escaped);
+    Shape::walls(local, reach, a.geometry, wall, escaped);
   } else {
     // Features by key, each given the slot that held its key before (its history) or a free one.
     int key[kWallSlots], slot[kWallSlots];
@@ -290,7 +291,7 @@ PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribut
     int n = 0;
     bool slots_held = true;  // more touched features than slots: the run stops
     const bool candidates_held = Shape::walls(
-        local, radius, a.geometry,
+        local, reach, a.geometry,
         [&](int k, double g, Vec3 local_normal) {
           if (n == kWallSlots) {
             slots_held = false;
@@ -324,6 +325,11 @@ PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribut
     touched = static_cast<std::uint8_t>(used);
   }
   if constexpr (history) a.history.wall_mask_out[i] = touched;
+}
+// The walls particle i touches (within its radius), as walls_within().
+template <class V, class F>
+PDSIM_HD void touching_walls(int i, const ParticleStepArgs& a, ParticleContribution& sum, F&& f) {
+  walls_within<V>(i, V::kPolydisperse ? a.radius[i] : a.mono_radius, a, sum, f);
 }
 
 // The contact of particle i with a wall at `gap` along `normal`, with tangential history xi

@@ -87,8 +87,8 @@ class BlockShares {
 
 class CpuEngine final : public EngineCore<CpuArray> {
  public:
-  CpuEngine(const EngineConfig& c, CpuStep step)
-      : EngineCore(c, step.variant), step_(std::move(step)) {
+  CpuEngine(const EngineConfig& c, CpuStep step, std::unique_ptr<NonsmoothStep> nonsmooth = {})
+      : EngineCore(c, step.variant), step_(std::move(step)), nonsmooth_(std::move(nonsmooth)) {
     threads_ = c.threads > 0 ? c.threads : omp_get_max_threads();
     pair_shares_ = BlockShares(threads_);
     particle_shares_ = BlockShares(threads_);
@@ -108,6 +108,12 @@ class CpuEngine final : public EngineCore<CpuArray> {
     if (needs_rebuild_) rebuild(container);
     dt_ = dt;
     const ParticleStepArgs a = args(container, dt);
+    if (nonsmooth_) {
+      totals_ = StepTotals{};
+      nonsmooth_->step(a, threads_, totals_);
+      flag_non_finite(totals_);
+      return totals_;
+    }
     const ClearanceSkip skip{travel_, expiry_.data(), sizes_.r_max};
     const LoadArrays load{loads_[0].data(), loads_[1].data(), loads_[2].data(),
                           loads_[3].data(), loads_[4].data(), loads_[5].data()};
@@ -156,6 +162,12 @@ class CpuEngine final : public EngineCore<CpuArray> {
 
   void accept() override {
     if (config_.recompute) current_ ^= 1, history_current_ ^= 1;  // the back buffers
+    if (nonsmooth_) {
+      // Contacts enter a step within the envelope: the lists must hold every pair within it.
+      if (lists_expired(travel_, totals_.speed_sq, dt_, sizes_.skin - config_.nonsmooth->envelope))
+        needs_rebuild_ = true;
+      return;
+    }
     track_drift(totals_);
   }
 
@@ -410,6 +422,7 @@ class CpuEngine final : public EngineCore<CpuArray> {
   }
 
   CpuStep step_;
+  std::unique_ptr<NonsmoothStep> nonsmooth_;  // a non-smooth scene's step, instead of step_
   int threads_ = 1;
   int current_ = 0, history_current_ = 0;  // the front buffers
   std::vector<double> expiry_;             // ClearanceSkip, per particle
@@ -447,11 +460,17 @@ struct NameOf {
 }  // namespace
 
 std::unique_ptr<DemEngine> make_cpu_engine(const EngineConfig& config) {
+  if (config.nonsmooth) {
+    cpu_engine::NonsmoothVariant v = cpu_engine::make_nonsmooth_step(config);
+    return std::make_unique<cpu_engine::CpuEngine>(
+        config, cpu_engine::CpuStep{nullptr, nullptr, std::move(v.variant)}, std::move(v.step));
+  }
   return std::make_unique<cpu_engine::CpuEngine>(config,
                                                  dispatch_laws(config, PickStepOf{})(config));
 }
 
 std::string variant_name(const EngineConfig& config) {
+  if (config.nonsmooth) return cpu_engine::make_nonsmooth_step(config).variant.name;
   return dispatch_variant(config, NameOf{});
 }
 
@@ -467,6 +486,10 @@ std::unique_ptr<DemEngine> make_engine(const EngineConfig& config) {
 #ifdef PDSIM_HAVE_CUDA
     if (!cuda_device_available())
       throw InputError("solver.backend = \"cuda\" but no CUDA device is available");
+    if (config.nonsmooth)
+      throw InputError(
+          "contact.model = \"nonsmooth\" runs on the CPU backend only (solver.backend = "
+          "\"cpu\"); the CUDA engine has the penalty laws");
     return make_cuda_engine(config);
 #else
     throw InputError("solver.backend = \"cuda\" but this pdsim was built without CUDA");

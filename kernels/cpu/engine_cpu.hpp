@@ -11,6 +11,7 @@
 #include <array>
 #include <atomic>
 #include <cstring>
+#include <memory>
 #include <numeric>
 
 #include "kernels/neighbours.hpp"
@@ -372,6 +373,19 @@ struct PickCpuStep {
     return {&pair_pass_block<V>, &particle_pass_block<V>, variant_info<V>()};
   }
 };
+
+// A non-smooth scene's whole step (kernels/cpu/nonsmooth_cpu.cpp): its contacts, their impulses
+// and the integration, over the engine's state, lists and history (the last step's impulses).
+class NonsmoothStep {
+ public:
+  virtual ~NonsmoothStep() = default;
+  virtual void step(const ParticleStepArgs& a, int threads, StepTotals& totals) = 0;
+};
+struct NonsmoothVariant {
+  std::unique_ptr<NonsmoothStep> step;
+  VariantInfo variant;
+};
+NonsmoothVariant make_nonsmooth_step(const EngineConfig& config);
 
 }  // namespace cpu_engine
 

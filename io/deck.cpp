@@ -522,9 +522,31 @@ ContactSpec read_contact(const std::optional<Table>& t, const Table& top, bool h
   ContactSpec c;
   if (t) {
     t->allow_only({"model", "tangential", "young", "poisson", "restitution", "friction",
-                   "stiffness", "rolling_friction"});
-    if (const auto i = t->choice("model", names_of<NormalLaws>()))
-      c.model = static_cast<NormalModel>(*i);
+                   "stiffness", "rolling_friction", "tolerance", "max_iterations", "rest_speed",
+                   "recovery_speed"});
+    std::vector<std::string_view> models = names_of<NormalLaws>();
+    models.push_back("nonsmooth");
+    if (const auto i = t->choice("model", models)) {
+      c.nonsmooth = *i + 1 == models.size();
+      if (!c.nonsmooth) c.model = static_cast<NormalModel>(*i);
+    }
+    // Each model's own keys: a rigid contact has no stiffness, moduli or tangential spring, and
+    // a penalty law no impulse solver.
+    const std::vector<const char*> penalty_keys = {"tangential", "young", "poisson", "stiffness",
+                                                   "rolling_friction"};
+    const std::vector<const char*> nonsmooth_keys = {"tolerance", "max_iterations", "rest_speed",
+                                                     "recovery_speed"};
+    for (const char* key : c.nonsmooth ? penalty_keys : nonsmooth_keys)
+      if (t->has(key))
+        t->fail(key, c.nonsmooth ? "not used by model = \"nonsmooth\" (rigid spheres: no "
+                                   "stiffness, moduli, tangential spring or rolling resistance); "
+                                   "remove it"
+                                 : "used only by model = \"nonsmooth\"; remove it");
+    c.tolerance = t->real("tolerance", "a positive number (m/s)", positive).value_or(0);
+    c.max_iterations = static_cast<int>(
+        t->integer("max_iterations", 1, 1000000, "(iterations a step)").value_or(0));
+    c.rest_speed = t->real("rest_speed", "a positive number (m/s)", positive).value_or(0);
+    c.recovery_speed = t->real("recovery_speed", "a positive number (m/s)", positive).value_or(0);
     if (const auto i = t->choice("tangential", names_of<TangentialLaws>()))
       c.tangential = static_cast<TangentialModel>(*i);
     c.young = t->real("young", "a positive number (Pa)", positive).value_or(c.young);
@@ -545,6 +567,7 @@ ContactSpec read_contact(const std::optional<Table>& t, const Table& top, bool h
       where.missing(prefix + m.key, m.expected,
                     std::string("for ") + law_key + " = \"" + law + "\"");
   };
+  if (c.nonsmooth) return c;  // restitution and friction have defaults
   with_normal_law(
       c.model, [&](auto law) { require(decltype(law)::missing(c), "model", decltype(law)::name); });
   with_tangential_law(c.tangential, [&](auto law) {

@@ -16,6 +16,13 @@ struct ContactSpec {
   double friction = 0.0;        // Coulomb coefficient
   double stiffness = 0;         // N/m, linear model normal stiffness (required for `linear`)
   double rolling_friction = 0;  // dimensionless rolling resistance coefficient (0 = off)
+  // model = "nonsmooth": rigid contacts (kernels/nonsmooth.hpp) instead of `model`'s law; 0 =
+  // the default the scene derives.
+  bool nonsmooth = false;
+  double tolerance = 0;       // m/s, the impulse solver's
+  int max_iterations = 0;     // per step
+  double rest_speed = 0;      // m/s
+  double recovery_speed = 0;  // m/s
 };
 
 }  // namespace pdsim

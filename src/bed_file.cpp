@@ -38,6 +38,13 @@ std::string damper_text(const DamperScene& d, bool fill) {
   double constants[sizeof(ContactParams) / sizeof(double)];
   std::memcpy(constants, &e.contact, sizeof constants);
   for (double v : constants) mix(v);
+  if (e.nonsmooth) {  // rigid contacts: the model's constants instead of the laws'
+    const NonsmoothParams& n = *e.nonsmooth;
+    s << " nonsmooth";
+    for (double v : {n.restitution, n.friction, n.rest_speed, n.recovery_speed, n.envelope,
+                     n.tolerance, double(n.max_iterations)})
+      mix(v);
+  }
   for (double r : e.radius) mix(r);
   if (fill)
     for (const ParticleState& p : e.particles) mix3(p.position);

@@ -226,6 +226,99 @@ void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOpti
   }
 }
 
+// The same scene with rigid contacts (kernels/nonsmooth.hpp), its step as a scene takes it:
+// `safety` r over twice the container's peak speed plus a fall across the container.
+EngineConfig rigid_config(EngineConfig c, Shake s, double safety) {
+  const double r = c.radius.front(), g = 9.81;
+  const double speed =
+      2 * 2 * kPi * s.frequency * s.amplitude + std::sqrt(2 * g * 2 * c.geometry.half_size.z);
+  c.dt = safety * r / speed;
+  NonsmoothParams p;
+  p.restitution = 0.6;
+  p.friction = c.contact.friction;
+  p.envelope = 2 * speed * c.dt;
+  p.rest_speed = p.recovery_speed = 2 * g * c.dt;
+  p.tolerance = p.rest_speed;
+  p.max_iterations = 300;
+  c.nonsmooth = p;
+  c.skin = p.envelope + default_skin(r, 0);
+  return c;
+}
+
+// Rigid contacts against the penalty engine at the example's stiffness (2e9 Pa) and steel's
+// (2e11 Pa), each at 0.15 Rayleigh times, on one thread: simulated periods per wall second,
+// alternated (each round runs every model once) and the median taken.
+void bench_rigid(const BenchOptions& o) {
+  struct Scene {
+    std::string title;
+    DamperSpec damper;
+    Shake shake;
+  };
+  std::vector<Scene> scenes;
+  if (o.pile) {
+    DamperSpec pile = shaken_box(250);
+    pile.container.size = {0.05, 0.05, 0.05};
+    pile.particles.fill = Fill::random;
+    scenes.push_back({"the Saeki pile, 250 spheres in a 50 mm cube", pile, kPileShake});
+  }
+  if (o.box)
+    for (int n : o.particles) {
+      DamperSpec box = shaken_box(n);
+      box.particles.fill = Fill::random;
+      scenes.push_back({"shaken box, " + std::to_string(n) + " spheres", box, kBoxShake});
+    }
+  for (const Scene& scene : scenes) {
+    std::printf(
+        "\n# rigid against penalty contacts: %s, d = 5 mm steel, e = 0.6, mu = 0.3, gravity, "
+        "shaken %g mm at %g Hz; %g s of warm-up (untimed), then %g periods timed, median of %d "
+        "alternated rounds, one thread\n",
+        scene.title.c_str(), 1e3 * scene.shake.amplitude, scene.shake.frequency, o.warmup,
+        o.periods, o.repeat);
+    std::printf("%-28s %-11s %-10s %-10s %-16s %-12s %-14s %s\n", "contacts", "dt_s", "steps",
+                "wall_s", "periods_per_s", "iterations", "in_problem", "variant");
+    std::vector<std::pair<std::string, EngineConfig>> models;
+    for (double young : {2e9, 2e11}) {
+      EngineConfig c = steel_spheres(scene.damper, young, 0.6, 1, 1, Backend::cpu);
+      c.dt = 0.15 * rayleigh_time(0.0025, 7800, young, 0.3);
+      models.push_back({young < 1e10 ? "penalty E = 2e9 Pa" : "penalty E = 2e11 Pa (steel)", c});
+    }
+    for (double safety : {0.2, 0.1})  // the default dt_safety, and half of it
+      models.push_back({"rigid, dt_safety " + std::to_string(safety).substr(0, 3),
+                        rigid_config(models.front().second, scene.shake, safety)});
+    std::vector<Warmed> warmed;
+    for (const auto& m : models) warmed.push_back(warm_up(m.second, scene.shake, o.warmup));
+    std::vector<std::vector<double>> walls(models.size());
+    std::vector<double> iterations(models.size(), 0), contacts(models.size(), 0);
+    for (int r = 0; r < o.repeat; ++r)
+      for (std::size_t k = 0; k < models.size(); ++k) {
+        const EngineConfig& c = models[k].second;
+        std::unique_ptr<DemEngine> engine;
+        const SolverTotals before = nonsmooth_totals();
+        walls[k].push_back(time_warmed(c, warmed[k], period_steps(o.periods, scene.shake, c.dt),
+                                       scene.shake, engine));
+        const SolverTotals after = nonsmooth_totals();
+        if (after.steps > before.steps) {
+          const double steps = static_cast<double>(after.steps - before.steps);
+          iterations[k] = static_cast<double>(after.iterations - before.iterations) / steps;
+          contacts[k] = static_cast<double>(after.contacts - before.contacts) / steps;
+        }
+      }
+    for (std::size_t k = 0; k < models.size(); ++k) {
+      const EngineConfig& c = models[k].second;
+      const double wall = spread(walls[k]).median;
+      char solver[2][32] = {"-", "-"};
+      if (c.nonsmooth) {
+        std::snprintf(solver[0], sizeof solver[0], "%.1f", iterations[k]);
+        std::snprintf(solver[1], sizeof solver[1], "%.0f", contacts[k]);
+      }
+      std::printf("%-28s %-11.4g %-10ld %-10.3f %-16.4g %-12s %-14s %s\n", models[k].first.c_str(),
+                  c.dt, period_steps(o.periods, scene.shake, c.dt), wall, o.periods / wall,
+                  solver[0], solver[1], variant_name(c).c_str());
+      std::fflush(stdout);
+    }
+  }
+}
+
 }  // namespace
 
 void add_bench_options(CLI::App& app, BenchOptions& o) {
@@ -257,6 +350,9 @@ void add_bench_options(CLI::App& app, BenchOptions& o) {
                  "of `pdsim sweep` run")
       ->check(CLI::Range(1, 4096));
   app.add_flag("--effects", o.effects, "time each optional effect against the full model");
+  app.add_flag("--rigid", o.rigid,
+               "rigid (non-smooth) contacts against the penalty engine at 2e9 and 2e11 Pa: the "
+               "pile and the shaken box at each --particles count (--no-pile, --no-box)");
   app.add_flag("--coupling", o.coupling,
                "time one coupling exchange (sdof, 20-element beam) per scheme and integrator");
   app.add_option("--backend", o.backend, "cpu or cuda")->check(CLI::IsMember({"cpu", "cuda"}));
@@ -424,6 +520,10 @@ int run_bench(const BenchOptions& o) {
   const Backend backend = o.backend == "cuda" ? Backend::cuda : Backend::cpu;
   if (o.coupling) {
     bench_coupling();
+    return 0;
+  }
+  if (o.rigid) {
+    bench_rigid(o);
     return 0;
   }
   // The scenes timed over whole periods (and by --jobs): the boxes, then the pile.

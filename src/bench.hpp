@@ -25,6 +25,7 @@ struct BenchOptions {
   int jobs = 0;           // > 0: also that many copies of each scene at once, one thread each
   bool effects = false;   // also time each optional effect against the full model
   bool coupling = false;  // time one structure <-> particle exchange per scheme and integrator
+  bool rigid = false;     // rigid contacts against the penalty engine
   std::string backend = "cpu";
 };
 

@@ -826,6 +826,25 @@ class Driver::Impl {
       particles += static_cast<int>(d.engine.particles.size());
     n["particles"] = particles;
     n["simulated_time_s"] = simulated_;
+    if (!scene.dampers.empty() && scene.dampers[0].engine.nonsmooth) {
+      // This process's solves (a resumed run's earlier ones are not counted).
+      const SolverTotals& a = solver_start_;
+      const SolverTotals b = nonsmooth_totals();
+      const double steps = static_cast<double>(b.steps - a.steps);
+      n["solver_iterations_per_step"] =
+          steps > 0 ? static_cast<double>(b.iterations - a.iterations) / steps : 0.0;
+      n["solver_most_iterations"] = b.most;
+      n["solver_steps_at_cap"] = static_cast<double>(b.capped - a.capped);
+      n["solver_worst_residual"] = b.worst_residual;
+      if (b.capped > a.capped) {
+        const std::string capped =
+            number(static_cast<double>(b.capped - a.capped)) + " of " + number(steps) +
+            " steps ended at contact.max_iterations with a residual above contact.tolerance "
+            "(largest " +
+            number(b.worst_residual) + " m/s)";
+        t["warning"] = scene.warning.empty() ? capped : scene.warning + "; " + capped;
+      }
+    }
   }
 
   const DeckRecord deck_;
@@ -858,6 +877,7 @@ class Driver::Impl {
   Results results_;
   std::function<void(const Results&)> checkpoint_;
   Progress* progress_ = nullptr;
+  SolverTotals solver_start_ = nonsmooth_totals();  // the non-smooth solves before this run
   std::mutex mutex_;
   int stop_after_ = 0;
   std::atomic<bool> stopped_{false};

@@ -332,6 +332,26 @@ TEST_CASE("restitution outside 0 < e <= 1, poisson outside -1 < nu < 0.5, negati
               "11:20: 'contact.rolling_friction': ", "expected a non-negative number, got -0.1");
 }
 
+TEST_CASE("non-smooth contacts: the penalty laws' keys refused, and the solver's elsewhere") {
+  const std::string deck = kSdof + kSine + "[contact]\nmodel = \"nonsmooth\"\n";  // line 11
+  for (const char* key : {"young = 2e11", "poisson = 0.3", "stiffness = 1e5",
+                          "tangential = \"history\"", "rolling_friction = 0.1"}) {
+    CAPTURE(key);
+    check_error(deck + key + "\n", "12:", "not used by model = \"nonsmooth\"");
+  }
+  check_error(deck + "tolerance = -1e-4\n",
+              "12:13: 'contact.tolerance': ", "expected a positive number (m/s), got -0.0001");
+  check_error(deck + "max_iterations = 0\n", "12:18: 'contact.max_iterations': ",
+              "expected an integer (iterations a step) from 1 to 1000000, got 0");
+  check_error(deck + "rest_speed = 0\n", "12:14: 'contact.rest_speed': ", "got 0");
+  check_error(kSdof + kSine + "[contact]\nyoung = 2e11\ntolerance = 1e-4\n",
+              "12:13: 'contact.tolerance': ", "used only by model = \"nonsmooth\"");
+  const Deck d = parse_deck(deck + "tolerance = 1e-4\nmax_iterations = 50\n", "deck.toml");
+  CHECK(d.contact.nonsmooth);
+  CHECK(d.contact.tolerance == 1e-4);
+  CHECK(d.contact.max_iterations == 50);
+}
+
 TEST_CASE("NaN and infinity are refused wherever a number is read") {
   check_error("[structure]\nkind = \"sdof\"\nmass = nan\n" + kSine,
               "3:8: 'structure.mass': ", "expected a positive number (kg), got nan");

@@ -132,8 +132,10 @@ TEST_CASE("mesh containers: check reports the cavity, bad meshes exit 1 naming t
 
 TEST_CASE("bad decks exit 1 with the position, and write nothing") {
   Sandbox box;
-  for (const char* name : {"bad_negative_mass.toml", "bad_misspelt_key.toml", "bad_syntax.toml",
-                           "bad_dt_above_limit.toml", "bad_particles_do_not_fit.toml"}) {
+  for (const char* name :
+       {"bad_negative_mass.toml", "bad_misspelt_key.toml", "bad_syntax.toml",
+        "bad_dt_above_limit.toml", "bad_particles_do_not_fit.toml", "bad_nonsmooth_stiffness.toml",
+        "bad_nonsmooth_tolerance.toml", "bad_nonsmooth_iterations.toml", "bad_nonsmooth_dt.toml"}) {
     std::string log;
     CAPTURE(name);
     CHECK(box.pdsim("run '" + deck(name) + "'", &log) == 1);

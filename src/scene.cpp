@@ -248,6 +248,23 @@ void fill_damper(DamperScene& ds, std::uint64_t seed) {
   ds.fill_fraction = volume / container_volume(d.container);
 }
 
+// An explicit solver.dt against the scene's s.dt_limit, which `name` names and `why` explains:
+// refused above it unless solver.allow_unstable, then run with a warning of `risk`.
+void explicit_dt(const Deck& deck, Scene& s, const std::string& name, const std::string& why,
+                 const std::string& risk) {
+  if (!(deck.solver.dt > 0)) return;
+  const std::string limit = name + " " + number(s.dt_limit) + " s";
+  if (deck.solver.dt > s.dt_limit && !deck.solver.allow_unstable)
+    throw InputError(deck.where("solver.dt"), "solver.dt",
+                     "dt = " + number(deck.solver.dt) + " s exceeds " + limit + why +
+                         "; lower it, use dt = \"auto\", or set solver.allow_unstable = true");
+  s.dt = deck.solver.dt;
+  s.dt_basis = "given in the deck";
+  if (s.dt > s.dt_limit)
+    s.warning = "dt = " + number(s.dt) + " s is " + number(s.dt / s.dt_limit) + " times " + limit +
+                " (solver.allow_unstable): " + risk;
+}
+
 // Non-smooth contacts: the step is a fraction of the time the fastest particle takes to cross
 // the smallest radius (a contact may then close within a step by a fraction of it, and the
 // envelope holds every contact that can), and no stiffness sets it.
@@ -309,21 +326,10 @@ void nonsmooth_step(const Deck& deck, Scene& s, double r_min) {
   s.dt_limit = kNonsmoothLimit * r_min / speed;
   s.dt = safety * r_min / speed;
   s.dt_basis = number(safety) + " " + basis;
-  if (deck.solver.dt > 0) {
-    if (deck.solver.dt > s.dt_limit && !deck.solver.allow_unstable)
-      throw InputError(deck.where("solver.dt"), "solver.dt",
-                       "dt = " + number(deck.solver.dt) + " s exceeds " + number(s.dt_limit) +
-                           " s, the step in which the fastest particle this scene can reach (" +
-                           number(speed) +
-                           " m/s) crosses half the smallest radius; lower it, use dt = "
-                           "\"auto\", or set solver.allow_unstable = true");
-    s.dt = deck.solver.dt;
-    s.dt_basis = "given in the deck";
-    if (s.dt > s.dt_limit)
-      s.warning = "dt = " + number(s.dt) + " s is " + number(s.dt / s.dt_limit) +
-                  " times the limit " + number(s.dt_limit) +
-                  " s (solver.allow_unstable): fast contacts may be missed";
-  }
+  explicit_dt(deck, s, "the limit",
+              ", the step in which the fastest particle this scene can reach (" + number(speed) +
+                  " m/s) crosses half the smallest radius",
+              "fast contacts may be missed");
   NonsmoothParams p;
   p.restitution = contact.restitution;
   p.friction = contact.friction;
@@ -446,21 +452,8 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     s.dt = safety * rule.basis_time;
     s.dt_limit = rule.dt_limit;
     s.dt_basis = number(safety) + " x " + rule.basis + " " + number(rule.basis_time) + " s";
-    if (deck.solver.dt > 0) {
-      if (deck.solver.dt > s.dt_limit && !deck.solver.allow_unstable)
-        throw InputError(deck.where("solver.dt"), "solver.dt",
-                         "dt = " + number(deck.solver.dt) + " s exceeds the stability limit " +
-                             number(s.dt_limit) +
-                             " s of this contact model; lower it, use dt = \"auto\", or set "
-                             "solver.allow_unstable = true");
-      s.dt = deck.solver.dt;
-      s.dt_basis = "given in the deck";
-      if (s.dt > s.dt_limit)
-        s.warning = "dt = " + number(s.dt) + " s is " + number(s.dt / s.dt_limit) +
-                    " times the stability limit " + number(s.dt_limit) +
-                    " s (solver.allow_unstable): contacts are under-resolved and results may "
-                    "be shifted or blow up";
-    }
+    explicit_dt(deck, s, "the stability limit", " of this contact model",
+                "contacts are under-resolved and results may be shifted or blow up");
   }
 
   s.frequencies = run_frequencies(deck.excitation);

@@ -75,6 +75,14 @@ LEVERS = {
                     {"particles": {"seed": 101}}),
     "young 2e10": ("contacts 10x stiffer (a finer reference: about 3x the time)",
                    {"contact": {"young": 2.0e10}}),
+    # Rigid spheres (kernels/nonsmooth.hpp): the penalty law's keys removed (None).
+    "rigid": ("rigid spheres: non-smooth contacts (APGD), dt_safety 0.2 of r / v",
+              {"contact": {"model": "nonsmooth", "young": None, "poisson": None,
+                           "tangential": None}}),
+    "rigid dt_safety 0.1": ("rigid, half the step",
+                            {"contact": {"model": "nonsmooth", "young": None, "poisson": None,
+                                         "tangential": None},
+                             "solver": {"dt_safety": 0.1}}),
 }
 
 
@@ -95,7 +103,10 @@ def deck_text(band, overrides, fills=None):
         x["settle"].update(realisations=fills, max_realisations=fills)
     for table, keys in overrides.items():
         target = {"settle": x["settle"], "particles": deck["damper"][0]["particles"]}.get(table)
-        (target if target is not None else deck.setdefault(table, {})).update(keys)
+        target = target if target is not None else deck.setdefault(table, {})
+        target.update({k: v for k, v in keys.items() if v is not None})
+        for k in [k for k, v in keys.items() if v is None]:
+            target.pop(k, None)
     deck.pop("output", None)
     return dumps(deck)
 

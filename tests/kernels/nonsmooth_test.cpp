@@ -212,3 +212,37 @@ TEST_CASE("rigid contacts: the same state on one thread and two, and after a che
 
 }  // namespace
 }  // namespace pdsim
+
+namespace pdsim {
+namespace {
+
+TEST_CASE(
+    "rigid contacts: spheres of three sizes settle in a cylinder, which carries their weight") {
+  const double dt = 2e-4;
+  EngineConfig c = rigid_box({0.012, 0.012, 0.03}, 0.5, 0.3, dt, 1.0);
+  c.shape = WallShape::cylinder;
+  c.geometry.radius = 0.012;
+  c.nonsmooth->tolerance = 1e-5;
+  double mass = 0;
+  for (int k = 0; k < 60; ++k) {
+    const double r = 0.0015 + 0.0005 * (k % 3);
+    const double angle = 2.39996 * k, rho = 0.006 * ((k % 2) + 0.3);
+    fixtures::add_particle(c, r,
+                           {rho * std::cos(angle), rho * std::sin(angle), -0.025 + 0.0009 * k}, {});
+    mass += fixtures::ball_mass(r, c.density);
+  }
+  c.skin = c.nonsmooth->envelope + 0.3 * 0.0015;
+  auto engine = make_engine(c);
+  CHECK(engine->variant() == "nonsmooth/coulomb/gravity/poly/cylinder");
+  for (int k = 0; k < 10000; ++k) fixtures::step(*engine, dt);  // 2 s
+  double force = 0;
+  for (int k = 0; k < 5000; ++k) force += -fixtures::step(*engine, dt).wall_force.z / 5000;
+  CHECK(force == doctest::Approx(mass * kG).epsilon(1e-3));
+  for (const ParticleState& p : engine->particles()) {
+    CHECK(std::hypot(p.position.x, p.position.y) < 0.012);
+    CHECK(p.position.z > -0.03);
+  }
+}
+
+}  // namespace
+}  // namespace pdsim

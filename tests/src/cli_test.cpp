@@ -237,23 +237,26 @@ file = "box.h5"
 }
 
 TEST_CASE("a stepped sine stopped after one frequency and resumed gives the same results") {
-  Sandbox box;
-  const std::string tiny = "'" + deck("tiny_stepped_sine.toml") + "'";
-  REQUIRE(box.pdsim("run --quiet --threads 1 -o whole.h5 " + tiny) == 0);
-  std::string log;
-  REQUIRE(box.pdsim("run --quiet --threads 2 -o split.h5 --stop-after 1 " + tiny, &log) == 0);
-  CHECK(fs::exists(box.dir / "split.h5.partial"));
-  CHECK_FALSE(fs::exists(box.dir / "split.h5"));
-  CHECK(box.pdsim("run --quiet -o other.h5 --resume " + tiny, &log) == 1);  // nothing to resume
-  REQUIRE(box.pdsim("run --quiet --threads 2 -o split.h5 --resume " + tiny, &log) == 0);
-  const pdsim::Results a = pdsim::read_results((box.dir / "whole.h5").string());
-  const pdsim::Results b = pdsim::read_results((box.dir / "split.h5").string());
-  // Bitwise: the checkpoint restores every array the next steps read, thread count aside.
-  CHECK(a.frf.amplitude == b.frf.amplitude);
-  CHECK(a.frf.phase == b.frf.phase);
-  CHECK(a.frf.dissipated_energy == b.frf.dissipated_energy);
-  CHECK(a.timeseries.displacement == b.timeseries.displacement);
-  CHECK(a.meta_numbers.at("particle_steps") == b.meta_numbers.at("particle_steps"));
+  for (const char* name : {"tiny_stepped_sine.toml", "tiny_rigid_stepped_sine.toml"}) {
+    CAPTURE(name);
+    Sandbox box;
+    const std::string tiny = "'" + deck(name) + "'";
+    REQUIRE(box.pdsim("run --quiet --threads 1 -o whole.h5 " + tiny) == 0);
+    std::string log;
+    REQUIRE(box.pdsim("run --quiet --threads 2 -o split.h5 --stop-after 1 " + tiny, &log) == 0);
+    CHECK(fs::exists(box.dir / "split.h5.partial"));
+    CHECK_FALSE(fs::exists(box.dir / "split.h5"));
+    CHECK(box.pdsim("run --quiet -o other.h5 --resume " + tiny, &log) == 1);  // nothing to resume
+    REQUIRE(box.pdsim("run --quiet --threads 2 -o split.h5 --resume " + tiny, &log) == 0);
+    const pdsim::Results a = pdsim::read_results((box.dir / "whole.h5").string());
+    const pdsim::Results b = pdsim::read_results((box.dir / "split.h5").string());
+    // Bitwise: the checkpoint restores every array the next steps read, thread count aside.
+    CHECK(a.frf.amplitude == b.frf.amplitude);
+    CHECK(a.frf.phase == b.frf.phase);
+    CHECK(a.frf.dissipated_energy == b.frf.dissipated_energy);
+    CHECK(a.timeseries.displacement == b.timeseries.displacement);
+    CHECK(a.meta_numbers.at("particle_steps") == b.meta_numbers.at("particle_steps"));
+  }
 }
 
 TEST_CASE("independent frequencies stopped and resumed keep every point and time series") {

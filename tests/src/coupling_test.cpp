@@ -58,6 +58,15 @@ double ball_start_offset() {
   return -0.5 * kClearance + 0.01 * kBallDiameter;
 }
 
+// The exact event-driven model of that damper in free decay from x0, sampled every `dt` s.
+reference::ImpactDamperTrace exact_free_decay(double x0, double duration, double dt) {
+  reference::ImpactDamperParams p{kMass, kStiffness,   2 * kZeta * std::sqrt(kStiffness * kMass),
+                                  0.110, kRestitution, kClearance,
+                                  0.0,   15.0};
+  reference::ImpactDamperState start{0.0, x0, 0.0, x0 + ball_start_offset(), 0.0};
+  return reference::simulate_impact_damper(p, start, duration, dt);
+}
+
 }  // namespace
 
 TEST_CASE(
@@ -89,11 +98,7 @@ TEST_CASE(
 
 TEST_CASE("impact damper free decay follows the exact event-driven model, every scheme") {
   const double x0 = 0.008, duration = 0.3;
-  reference::ImpactDamperParams p{kMass, kStiffness,   2 * kZeta * std::sqrt(kStiffness * kMass),
-                                  0.110, kRestitution, kClearance,
-                                  0.0,   15.0};
-  reference::ImpactDamperState start{0.0, x0, 0.0, x0 + ball_start_offset(), 0.0};
-  const auto exact = reference::simulate_impact_damper(p, start, duration, 1e-4);
+  const auto exact = exact_free_decay(x0, duration, 1e-4);
   REQUIRE(exact.impact_times.size() >= 4);  // the decay is shaped by impacts
 
   for (CouplingScheme scheme :
@@ -145,11 +150,7 @@ std::string scene_warning(const Deck& d) {
 // impacts are Newton's at any step, so what is left is how the step resolves where they fall.
 TEST_CASE("impact damper free decay with rigid contacts follows the exact model as dt falls") {
   const double x0 = 0.008, duration = 0.3;
-  reference::ImpactDamperParams p{kMass, kStiffness,   2 * kZeta * std::sqrt(kStiffness * kMass),
-                                  0.110, kRestitution, kClearance,
-                                  0.0,   15.0};
-  reference::ImpactDamperState start{0.0, x0, 0.0, x0 + ball_start_offset(), 0.0};
-  const auto exact = reference::simulate_impact_damper(p, start, duration, 1e-5);
+  const auto exact = exact_free_decay(x0, duration, 1e-5);
   for (CouplingScheme scheme :
        {CouplingScheme::loose, CouplingScheme::interleaved, CouplingScheme::tight}) {
     double error[3] = {};
@@ -267,11 +268,7 @@ TEST_CASE("coupling order: every scheme converges on the exact impact damper as 
   // Measured: interleaved 1.37, 0.84, 0.61 % of x0 (order 0.6), tight 3.31, 0.81, 0.41 %
   // (order 1.5): tight is worse at the coarsest step and better at the finer ones.
   const double x0 = 0.008, duration = 0.3;
-  reference::ImpactDamperParams p{kMass, kStiffness,   2 * kZeta * std::sqrt(kStiffness * kMass),
-                                  0.110, kRestitution, kClearance,
-                                  0.0,   15.0};
-  reference::ImpactDamperState start{0.0, x0, 0.0, x0 + ball_start_offset(), 0.0};
-  const auto exact = reference::simulate_impact_damper(p, start, duration, 1e-4);
+  const auto exact = exact_free_decay(x0, duration, 1e-4);
   for (CouplingScheme scheme : {CouplingScheme::interleaved, CouplingScheme::tight}) {
     double error[3] = {};
     for (int k = 0; k < 3; ++k) {

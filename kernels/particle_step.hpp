@@ -258,8 +258,8 @@ PDSIM_HD void container_offset(Vec3 x, const ParticleStepArgs& a, Vec3& offset, 
 // the slots in the history's output mask. Flags a centre further than one radius outside the
 // container, and a particle near more features of a mesh than it has slots.
 template <class V, class F>
-PDSIM_HD void walls_within(int i, double reach, const ParticleStepArgs& a,
-                           ParticleContribution& sum, F&& f) {
+PDSIM_HOT void walls_within(int i, double reach, const ParticleStepArgs& a,
+                            ParticleContribution& sum, F&& f) {
   using Shape = ShapeOf<V::kShape>;
   constexpr bool history = V::Tangential::kHistory;
   const double radius = V::kPolydisperse ? a.radius[i] : a.mono_radius;

@@ -74,7 +74,7 @@ std::string check_report(const Deck& deck, const Scene& scene) {
                                     : " fill")
       << ")\n";
   if (deck.bed.settle)
-    s << "bed: settled under gravity first, until no particle moves faster than " << deck.bed.speed
+    s << "bed: settled under gravity first, until no particle moves faster than " << scene.bed.speed
       << " m/s for " << kBedHold_s << " s (at most " << deck.bed.max_time << " s)"
       << (deck.bed.file.empty() ? "" : "; kept in " + deck.bed.file) << "\n";
   // Estimated cost: simulated time x steps/s x particles, at an assumed 1e7 particle-steps/s.

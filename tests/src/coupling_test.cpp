@@ -192,6 +192,48 @@ TEST_CASE("impact damper free decay with rigid contacts follows the exact model 
   }
 }
 
+// Forced from rest at 15 Hz (2 N), the ball starting at rest off the slot's centre: rigid
+// contacts with tight coupling beside the penalty engine (linear 1e8 N/m, interleaved), both
+// against the exact model, over 0.5 s (7.5 periods, the transient and the impacts it brings).
+TEST_CASE("forced impact damper: rigid and penalty contacts beside the exact model") {
+  const double duration = 0.5, sample = 1e-5;
+  reference::ImpactDamperParams p{kMass, kStiffness,   2 * kZeta * std::sqrt(kStiffness * kMass),
+                                  0.110, kRestitution, kClearance,
+                                  2.0,   15.0};
+  reference::ImpactDamperState start{0.0, 0.0, 0.0, ball_start_offset(), 0.0};
+  const auto exact = reference::simulate_impact_damper(p, start, duration, sample);
+  REQUIRE(exact.impact_times.size() >= 4);
+  double scale = 0;
+  for (double x : exact.x) scale = std::max(scale, std::fabs(x));
+  auto error_of = [&](Deck d) {
+    d.excitation.kind = ExcitationKind::sine;
+    d.excitation.amplitude = 2.0;
+    d.excitation.frequency = 15.0;
+    d.excitation.duration = duration;
+    d.output.every = sample;
+    const Results r = simulate(d, build_scene(d));
+    double worst = 0;
+    for (std::size_t i = 0; i < r.timeseries.time.size(); ++i) {
+      const auto n = static_cast<std::size_t>(std::lround(r.timeseries.time[i] / sample));
+      if (n < exact.x.size())
+        worst = std::max(worst, std::fabs(r.timeseries.displacement[i] - exact.x[n]) / scale);
+    }
+    return worst;
+  };
+  Deck rigid = impact_damper_deck(CouplingScheme::tight);
+  rigid.contact.nonsmooth = true;
+  rigid.solver.dt_safety = 0.1 / 16;
+  const double rigid_error = error_of(rigid);
+  const double penalty_error = error_of(impact_damper_deck(CouplingScheme::interleaved));
+  MESSAGE("forced, max |x - x_exact| / max |x_exact|: rigid (tight, 1/16 of its auto step) "
+          << rigid_error << ", penalty (interleaved, its auto step) " << penalty_error);
+  // Measured: rigid 4.9 %, penalty 7.5 %. Each impact's timing shifts the ones after it, so the
+  // forced transient is a harder comparison than the free decay (1.0 % and 3 %).
+  CHECK(rigid_error < 0.1);
+  CHECK(penalty_error < 0.1);
+  CHECK(rigid_error < penalty_error);  // the exact model's impacts are rigid
+}
+
 namespace {
 
 // Relative energy change of an elastic (e = 1) impact damper whose ball is 5.5 times heavier than

@@ -45,11 +45,10 @@ void raise_to(std::atomic<T>& a, T v) {
   }
 }
 
-constexpr int kSumBlock = 256;
+constexpr int kSumBlock = 256;  // contacts per partial sum (fixed: sums independent of threads)
 // The first Lipschitz estimate, in largest diagonal entries of N: 1, 2 and 4 took 20.6, 18.9
 // and 21.0 iterations a step on the shaken Saeki pile.
-constexpr double kFirstLipschitz =
-    2.0;  // contacts per partial sum (fixed: sums independent of threads)
+constexpr double kFirstLipschitz = 2.0;
 
 template <class V>
 class Solver final : public NonsmoothStep {

@@ -39,8 +39,8 @@ struct EngineConfig {
   ContactParams contact;
   // Rigid contacts (kernels/nonsmooth.hpp) instead of the penalty laws above: the CPU backend.
   std::optional<NonsmoothParams> nonsmooth;
-  double dt = 0;                         // s
-  double skin = 0;                       // m, Verlet skin (0 = 0.15 x smallest diameter)
+  double dt = 0;    // s
+  double skin = 0;  // m, Verlet skin (0 = 0.15 x smallest diameter), plus a rigid envelope
   std::vector<ParticleState> particles;  // initial state, world frame
   // A step may be computed again before accept() (tight coupling): the state then stays
   // double buffered. Otherwise the CPU engine advances it in place, which saves the memory

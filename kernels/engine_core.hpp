@@ -34,6 +34,9 @@ inline void check_particle_count(int count, int max_neighbours) {
 struct EngineSizes {
   int count = 0;
   double r_min = 0, r_max = 0, skin = 0;  // m
+  // m: pairs this far apart enter a step (rigid contacts' envelope, 0 for the penalty laws);
+  // the skin holds it on top of the drift margin, so that the lists hold every such pair
+  double reach = 0;
   int max_neighbours = 0;
 };
 inline EngineSizes engine_sizes(const EngineConfig& c) {
@@ -44,7 +47,8 @@ inline EngineSizes engine_sizes(const EngineConfig& c) {
   const auto [r_min, r_max] = std::minmax_element(c.radius.begin(), c.radius.end());
   s.r_min = *r_min;
   s.r_max = *r_max;
-  s.skin = default_skin(s.r_min, c.skin);
+  s.reach = c.nonsmooth ? c.nonsmooth->envelope : 0.0;
+  s.skin = default_skin(s.r_min, c.skin) + s.reach;
   s.max_neighbours = neighbour_slots(s.r_min, s.r_max, s.skin);
   check_particle_count(s.count, s.max_neighbours);
   if (2 * s.r_max >= smallest_inner_size(c.shape, c.geometry))
@@ -446,9 +450,10 @@ class EngineCore : public DemEngine {
   }
 
   // After a step is accepted: the lists are rebuilt once the particles may have drifted half
-  // the skin.
+  // the skin beyond the reach of a step's pairs.
   void track_drift(const StepTotals& totals) {
-    if (lists_expired(travel_, totals.speed_sq, dt_, sizes_.skin)) needs_rebuild_ = true;
+    if (lists_expired(travel_, totals.speed_sq, dt_, sizes_.skin - sizes_.reach))
+      needs_rebuild_ = true;
   }
 
   // A checkpoint's grid and rebuild policy, as this engine holds them.

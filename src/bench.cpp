@@ -233,15 +233,7 @@ EngineConfig rigid_config(EngineConfig c, Shake s, double safety) {
   const double speed =
       2 * 2 * kPi * s.frequency * s.amplitude + std::sqrt(2 * g * 2 * c.geometry.half_size.z);
   c.dt = safety * r / speed;
-  NonsmoothParams p;
-  p.restitution = 0.6;
-  p.friction = c.contact.friction;
-  p.envelope = 2 * speed * c.dt;
-  p.rest_speed = p.recovery_speed = 2 * g * c.dt;
-  p.tolerance = p.rest_speed;
-  p.max_iterations = 300;
-  c.nonsmooth = p;
-  c.skin = p.envelope + default_skin(r, 0);
+  c.nonsmooth = nonsmooth_params(0.6, c.contact.friction, speed, c.dt, g);
   return c;
 }
 

@@ -273,7 +273,6 @@ void explicit_dt(const Deck& deck, Scene& s, const std::string& name, const std:
 // step's cost hardly grows with it (`pdsim bench --rigid`).
 constexpr double kNonsmoothSafety = 0.2;
 constexpr double kNonsmoothLimit = 0.5;  // beyond half a radius a step contacts are missed
-constexpr int kNonsmoothIterations = 300;
 
 // The largest speed the containers reach (m/s): the motion's where it is prescribed; else the
 // bare structure's steady response at the run's frequencies (the particles as rigid mass: they
@@ -330,23 +329,12 @@ void nonsmooth_step(const Deck& deck, Scene& s, double r_min) {
               ", the step in which the fastest particle this scene can reach (" + number(speed) +
                   " m/s) crosses half the smallest radius",
               "fast contacts may be missed");
-  NonsmoothParams p;
-  p.restitution = contact.restitution;
-  p.friction = contact.friction;
-  p.envelope = 2 * speed * s.dt;  // the most a pair can close in a step
-  p.rest_speed = contact.rest_speed > 0 ? contact.rest_speed
-                 : g > 0                ? 2 * g * s.dt  // twice what gravity adds in a step
-                                        : 1e-3 * speed;
-  p.recovery_speed = contact.recovery_speed > 0 ? contact.recovery_speed : p.rest_speed;
-  // Velocities met to the rest speed: slower motion is rest. A tenth of it took 2.8 times the
-  // iterations on the shaken Saeki pile (62 against 22 a step, `pdsim bench --rigid`).
-  p.tolerance = contact.tolerance > 0 ? contact.tolerance : p.rest_speed;
-  p.max_iterations = contact.max_iterations > 0 ? contact.max_iterations : kNonsmoothIterations;
-  for (DamperScene& d : s.dampers) {
-    d.engine.nonsmooth = p;
-    const double r_least = *std::min_element(d.engine.radius.begin(), d.engine.radius.end());
-    d.engine.skin = p.envelope + default_skin(r_least, 0);  // the lists hold the envelope
-  }
+  NonsmoothParams p = nonsmooth_params(contact.restitution, contact.friction, speed, s.dt, g);
+  if (contact.rest_speed > 0) p.rest_speed = p.recovery_speed = p.tolerance = contact.rest_speed;
+  if (contact.recovery_speed > 0) p.recovery_speed = contact.recovery_speed;
+  if (contact.tolerance > 0) p.tolerance = contact.tolerance;
+  if (contact.max_iterations > 0) p.max_iterations = contact.max_iterations;
+  for (DamperScene& d : s.dampers) d.engine.nonsmooth = p;
   s.contact_note = " (rigid: non-smooth contacts)";
   // An explicit scheme holds the container's velocity through a step, so a rigid impact sees
   // the structure as infinitely heavy: the rebound off it is off by about (1 + e) m / M for a
@@ -405,7 +393,6 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
       contact.nonsmooth ? ContactParams{} : with_normal_law(contact.model, [&](auto law) {
         return decltype(law)::params(contact);
       });
-  params.friction = contact.friction;
   params.rolling_friction = contact.rolling_friction;
 
   double r_min = 1e300, density_min = 0;

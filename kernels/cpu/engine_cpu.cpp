@@ -162,12 +162,6 @@ class CpuEngine final : public EngineCore<CpuArray> {
 
   void accept() override {
     if (config_.recompute) current_ ^= 1, history_current_ ^= 1;  // the back buffers
-    if (nonsmooth_) {
-      // Contacts enter a step within the envelope: the lists must hold every pair within it.
-      if (lists_expired(travel_, totals_.speed_sq, dt_, sizes_.skin - config_.nonsmooth->envelope))
-        needs_rebuild_ = true;
-      return;
-    }
     track_drift(totals_);
   }
 

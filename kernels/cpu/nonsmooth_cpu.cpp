@@ -16,8 +16,7 @@ namespace pdsim {
 namespace cpu_engine {
 namespace {
 
-// What the solver's passes read of a contact, kept apart from the rest (Contact) so that
-// they stream through a compact array.
+// What the solver's passes read of a contact.
 struct Frame {
   Vec3 n, t1, t2;              // the frame, n from the partner to i
   double ri = 0, rj = 0;       // arms along n (rj = 0 for a wall)
@@ -69,7 +68,6 @@ class Solver final : public NonsmoothStep {
     });
     c_.clear();
     for (const auto& list : block_contacts_) c_.insert(c_.end(), list.begin(), list.end());
-    frames_.assign(c_.begin(), c_.end());
     const int m = static_cast<int>(c_.size());
     dv_.assign(6 * static_cast<std::size_t>(n), 0.0);
     int iterations = 0;
@@ -187,7 +185,7 @@ class Solver final : public NonsmoothStep {
   }
 
   Vec3 impulse(const double* x, int k) const {
-    const Frame& c = frames_[k];
+    const Frame& c = c_[k];
     const double* g = x + R * static_cast<std::ptrdiff_t>(k);
     if constexpr (R == 3) return g[0] * c.n + g[1] * c.t1 + g[2] * c.t2;
     return g[0] * c.n;
@@ -198,7 +196,7 @@ class Solver final : public NonsmoothStep {
   // -r n x P / I as first or second body alike).
   void gather(const double* x, const ParticleStepArgs& a) {
     each(static_cast<int>(c_.size()), kSumBlock, [&](int k) {
-      const Vec3 p = impulse(x, k), q = cross(frames_[k].n, p);
+      const Vec3 p = impulse(x, k), q = cross(c_[k].n, p);
       double* o = pq_.data() + 6 * static_cast<std::ptrdiff_t>(k);
       o[0] = p.x, o[1] = p.y, o[2] = p.z, o[3] = q.x, o[4] = q.y, o[5] = q.z;
     });
@@ -250,7 +248,7 @@ class Solver final : public NonsmoothStep {
   double product(const double* x, double* out, const ParticleStepArgs& a) {
     gather(x, a);
     return blocked<Sum>([&](int k, Sum& f) {
-             const Frame& c = frames_[k];
+             const Frame& c = c_[k];
              const double* di = dv_.data() + 6 * static_cast<std::ptrdiff_t>(c.i);
              Vec3 u = Vec3{di[0], di[1], di[2]} - c.ri * cross(Vec3{di[3], di[4], di[5]}, c.n);
              if (c.j >= 0) {
@@ -324,7 +322,7 @@ class Solver final : public NonsmoothStep {
     // (what one contact alone asks); backtracking doubles it where too low. From the step's own
     // contacts, so that a restored checkpoint goes on as the run did.
     double lipschitz = 0;
-    for (const Frame& f : frames_) {
+    for (const Frame& f : c_) {
       const double mi = inv_mass(a, f.i), mj = f.j >= 0 ? inv_mass(a, f.j) : 0.0;
       double diag = mi + mj;
       if constexpr (R == 3)
@@ -442,7 +440,6 @@ class Solver final : public NonsmoothStep {
   std::vector<std::vector<Contact>> block_contacts_;
   std::vector<StepTotals> block_totals_;
   std::vector<Contact> c_;
-  std::vector<Frame> frames_;  // c_'s frames
   std::vector<std::int32_t> start_, entry_, fill_;
   std::vector<double> arm_;  // per entry: the body's arm (its radius)
   std::vector<double> pq_;   // per contact: P and n x P (gather())

@@ -14,8 +14,8 @@ namespace {
 
 constexpr double kG = 9.81;
 
-// Steel spheres in a box with rigid contacts; the envelope and skin as the scene sets them
-// for a particle speed `speed` (src/scene.cpp).
+// Steel spheres in a box with rigid contacts, their constants as a scene derives them for a
+// particle speed `speed`, solved to 1e-12 m/s.
 EngineConfig rigid_box(Vec3 half_size, double restitution, double friction, double dt, double speed,
                        Vec3 gravity = {0, 0, -kG}) {
   EngineConfig c;
@@ -25,15 +25,9 @@ EngineConfig rigid_box(Vec3 half_size, double restitution, double friction, doub
   c.density = fixtures::kSteelDensity;
   c.gravity = gravity;
   c.contact.friction = friction;
-  NonsmoothParams p;
-  p.restitution = restitution;
-  p.friction = friction;
-  p.envelope = 2 * speed * dt;
-  p.rest_speed = 2 * kG * dt;
-  p.recovery_speed = p.rest_speed;
-  p.tolerance = 1e-12;
-  p.max_iterations = 500;
-  c.nonsmooth = p;
+  c.nonsmooth = nonsmooth_params(restitution, friction, speed, dt, norm(gravity));
+  c.nonsmooth->tolerance = 1e-12;
+  c.nonsmooth->max_iterations = 500;
   c.dt = dt;
   return c;
 }
@@ -92,7 +86,6 @@ TEST_CASE("a pile of 200 spheres stays at rest for 10 s, the walls carrying its 
   const double r = 0.002, dt = 2e-4;
   EngineConfig c = rigid_box({0.015, 0.015, 0.03}, 0.6, 0.4, dt, 1.0);
   c.nonsmooth->tolerance = 1e-5;  // m/s
-  c.skin = c.nonsmooth->envelope + 0.3 * r;
   std::mt19937_64 gen(7);
   std::uniform_real_distribution<double> u(-1, 1);
   // A loose lattice with a little noise, so that the pile settles into no lattice.
@@ -172,7 +165,6 @@ EngineConfig falling_bed(int threads) {
   EngineConfig c = rigid_box({0.02, 0.02, 0.05}, 0.6, 0.3, dt, 1.0);
   c.threads = threads;
   c.nonsmooth->tolerance = 1e-4;
-  c.skin = c.nonsmooth->envelope + 0.3 * r;
   for (int k = 0; k < 600; ++k)
     fixtures::add_particle(
         c, r,
@@ -231,7 +223,6 @@ TEST_CASE(
                            {rho * std::cos(angle), rho * std::sin(angle), -0.025 + 0.0009 * k}, {});
     mass += fixtures::ball_mass(r, c.density);
   }
-  c.skin = c.nonsmooth->envelope + 0.3 * 0.0015;
   auto engine = make_engine(c);
   CHECK(engine->variant() == "nonsmooth/coulomb/gravity/poly/cylinder");
   for (int k = 0; k < 10000; ++k) fixtures::step(*engine, dt);  // 2 s

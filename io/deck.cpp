@@ -1,4 +1,4 @@
-// Deck parsing and validation (brief section 5). Every value is checked where it is read, so an
+// Deck parsing and validation (io/decks.md). Every value is checked where it is read, so an
 // error names the exact key, its position in the file and what was expected.
 #include "io/deck.hpp"
 

@@ -1,4 +1,4 @@
-// The input deck as the user wrote it, parsed and validated (brief section 5). SI units.
+// The input deck as the user wrote it, parsed and validated (io/decks.md). SI units.
 // Derived quantities (masses, time step, kernel variant) live in the Scene, not here.
 #pragma once
 

@@ -1,4 +1,4 @@
-// HDF5 writer/reader for Results (brief section 6), on the HDF5 1.10 C API.
+// HDF5 writer/reader for Results (io/output.md), on the HDF5 1.10 C API.
 #include "io/results.hpp"
 
 #include <fcntl.h>

@@ -1,4 +1,4 @@
-// Everything a run produces, in SI units, and the HDF5 writer/reader for it (brief section 6).
+// Everything a run produces, in SI units, and the HDF5 writer/reader for it (io/output.md).
 #pragma once
 
 #include <array>

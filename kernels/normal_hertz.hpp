@@ -10,7 +10,8 @@
 
 namespace pdsim {
 
-// Restitution-consistent damping factor (brief section 2): c = factor sqrt(Sn m*).
+// Restitution-consistent damping factor (Tsuji et al., Powder Technol. 71, 1992):
+// c = factor sqrt(Sn m*).
 inline double hertz_damping_factor(double restitution) {
   const double l = std::log(restitution);
   const double beta = l / std::sqrt(l * l + kPi * kPi);

@@ -9,7 +9,7 @@
 
 namespace pdsim {
 
-// Restitution-consistent damping factor (brief section 2): c = factor sqrt(m* k).
+// Restitution-consistent damping factor (e independent of impact speed): c = factor sqrt(m* k).
 inline double linear_damping_factor(double restitution) {
   const double l = std::log(restitution);
   return 2.0 * std::fabs(l) / std::sqrt(kPi * kPi + l * l);

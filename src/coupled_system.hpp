@@ -1,5 +1,5 @@
 // The structure and its particle dampers advanced together, one DEM step at a time, with the
-// coupling scheme of the deck (brief section 2):
+// coupling scheme of the deck (kernels/physics.md, Coupling):
 //   loose:       the structure takes the damper force of t_n, held constant over its step;
 //   interleaved: the damper impulse kicks the structure, then both drift (the leapfrog split the
 //                particles use too, so momentum is exchanged at one instant and energy stays

@@ -87,7 +87,7 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
   std::vector<Vec3> centres;
   centres.reserve(n);
   if (damper.particles.fill == Fill::lattice) {
-    // Simple cubic lattice, spacing 1.02 d, first centre 0.51 d from each lower wall (brief 5).
+    // Simple cubic lattice (io/decks.md): spacing 1.02 d, first centre 0.51 d from each lower wall.
     const double d = 2 * r_max, spacing = 1.02 * d;
     const Vec3 start = -1.0 * g.half_size + Vec3{0.51 * d, 0.51 * d, 0.51 * d};
     for (int k = 0; centres.size() < n; ++k) {

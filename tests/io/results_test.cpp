@@ -319,7 +319,7 @@ TEST_CASE("results: failures throw with the path in the message") {
   fs::remove_all(dir);
 }
 
-TEST_CASE("results: h5dump finds the object names of the brief's output contract") {
+TEST_CASE("results: h5dump finds the object names of the output contract (io/output.md)") {
   if (std::system("command -v h5dump > /dev/null 2>&1") != 0) {
     MESSAGE("h5dump (Debian hdf5-tools) is not on PATH: contract check skipped");
     return;

@@ -1,10 +1,11 @@
 // Normal contact laws (kernels/contact_normal.hpp) through the engine: head-on binary and wall
-// impacts against the restitution and contact-time formulas of the brief (section 2).
+// impacts against the closed-form restitution and contact time (linear: the damped oscillator;
+// Hertz: Tsuji et al. 1992 damping, Johnson 1985 contact time).
 //
 // The linear dashpot force jumps to c v at the first and last step of a contact, so the
 // measured restitution carries an O(dt/tc) error (about 2e-2 x e at dt = tc/100, ten times less
 // at tc/1000); the Tsuji dashpot vanishes with the overlap and converges faster (its continuous
-// solution returns the deck e to 1e-7, by RK4 integration of the brief's formula). Each case runs
+// solution returns the deck e to 1e-7, by RK4 integration of the Hertz-Tsuji law). Each case runs
 // at both resolutions: the coarse bound is what production steps give, the fine bound shows
 // convergence to the exact value. A wrong damping formula (e.g. sqrt(5/6) missing in Tsuji's
 // form, or ln^2 e missing under the root) moves e by 2e-2 to 3e-2 and fails both.
@@ -23,7 +24,7 @@ namespace {
 
 using namespace fixtures;
 
-constexpr double kRadius = 2.5e-3;    // m, the brief's 5 mm steel ball
+constexpr double kRadius = 2.5e-3;    // m, a 5 mm steel ball
 constexpr double kStiffness = 1.0e5;  // N/m, linear law
 constexpr double kHalfBox = 0.05;     // m, walls far from the pair
 
@@ -224,11 +225,11 @@ TEST_CASE("linear law: the normal tally is the dashpot's work over the discrete 
 
 TEST_CASE("the step is velocity Verlet as LAMMPS runs it: same trajectory, second order") {
   // LAMMPS's velocity Verlet (fix nve): v += dt/2 F/m; x += dt v; F = F(x, v) with the
-  // half-step v; v += dt/2 F/m. Written here for a Hertz-Tsuji pair from the brief's formula
-  // (section 2), it is a second-order step; the engine's semi-implicit Euler (v += dt F/m,
-  // x += dt v) must follow the same positions, its stored velocity the half-step one and the
-  // full-step velocity the mean of two stored ones. An Euler step that moved x before v would
-  // miss by dt times the velocity change a step, 1e-3 of the overlap at 50 steps a contact.
+  // half-step v; v += dt/2 F/m. Written here for a Hertz-Tsuji pair (kernels/normal_hertz.hpp),
+  // it is a second-order step; the engine's semi-implicit Euler (v += dt F/m, x += dt v) must
+  // follow the same positions, its stored velocity the half-step one and the full-step velocity
+  // the mean of two stored ones. An Euler step that moved x before v would miss by dt times the
+  // velocity change a step, 1e-3 of the overlap at 50 steps a contact.
   const double mass = ball_mass(kRadius, kSteelDensity), speed = 1.0, e = 0.6;
   const ContactParams contact = hertz_contact(kSteelYoung, kSteelPoisson, e, 0);
   const double modulus = contact.hertz_modulus_pp, radius_eff = 0.5 * kRadius;
@@ -302,7 +303,7 @@ TEST_CASE("the step is velocity Verlet as LAMMPS runs it: same trajectory, secon
   validation_bound(
       "Hertz-Tsuji pair impact, 25-200 steps a contact: largest position difference "
       "from velocity Verlet, over the deepest overlap",
-      "LAMMPS's velocity Verlet (fix nve), from the brief's force law", 1e-9, worst_relative, "");
+      "LAMMPS's velocity Verlet (fix nve), from the Hertz-Tsuji law", 1e-9, worst_relative, "");
   validation_row(
       "Hertz-Tsuji pair impact, e 0.6: order in dt of the energy balance, 25-200 steps "
       "a contact",

@@ -1,6 +1,6 @@
 // Shared set-ups for the DEM engine tests: steel spheres, contact constants built from the
-// brief's formulas (section 2) and a driver that follows one impact step by step with the
-// container at rest at the origin.
+// laws' restitution-consistent dampings (kernels/normal_linear.hpp, kernels/normal_hertz.hpp)
+// and a driver that follows one impact step by step with the container at rest at the origin.
 #pragma once
 
 #include <cmath>

@@ -28,7 +28,7 @@ double uniform(std::mt19937_64& gen, double a, double b) {
 }
 
 // Centres on a simple cubic lattice of spacing `spacing` from the lower corner of a box of half
-// edges `half`, x fastest (like the brief's lattice fill).
+// edges `half`, x fastest (like the deck's fill = "lattice", io/decks.md).
 std::vector<Vec3> lattice(Vec3 half, double spacing, std::size_t count) {
   std::vector<Vec3> out;
   const Vec3 start = Vec3{0.51, 0.51, 0.51} * spacing - half;

@@ -1,5 +1,6 @@
 // The exact impact-damper reference against conservation laws, textbook oscillator solutions,
-// the brief's published regime and the symmetric two-impact closed form.
+// the coexisting regimes of a single ball on Saeki's primary at 15 Hz and the symmetric
+// two-impact closed form (Masri & Caughey 1966).
 #include "tests/support/impact_damper_exact.hpp"
 
 #include <doctest/doctest.h>
@@ -20,9 +21,10 @@ using pdsim::reference::simulate_impact_damper;
 
 constexpr double kTwoPi = 6.28318530717958647692;
 
-// Brief section 3: M = 2.37 kg, K = 21.5 kN/m, zeta = 0.01, F0 = 2 N, 0.110 kg ball, e = 0.6,
-// clearance 10 mm, 15 Hz.
-ImpactDamperParams brief_case() {
+// Masri & Caughey's single-ball impact damper on Saeki's (2002) primary system (the ball and
+// primary of tests/src/coupling_test.cpp), forced: M = 2.37 kg, K = 21.5 kN/m, zeta = 0.01,
+// F0 = 2 N, 0.110 kg ball, e = 0.6, clearance 10 mm, 15 Hz.
+ImpactDamperParams saeki_ball_case() {
   ImpactDamperParams p;
   p.M = 2.37;
   p.K = 21500;
@@ -69,7 +71,7 @@ TEST_CASE(
 }
 
 TEST_CASE("elastic ball, undamped unforced primary: energy constant to 1e-10 over 100 impacts") {
-  ImpactDamperParams p = brief_case();
+  ImpactDamperParams p = saeki_ball_case();
   p.C = 0;
   p.e = 1;
   const double x0 = 0.02;  // m, four times the half clearance: an impact every half swing
@@ -84,7 +86,7 @@ TEST_CASE("elastic ball, undamped unforced primary: energy constant to 1e-10 ove
 }
 
 TEST_CASE("inelastic ball, undamped unforced primary: energy lost equals the impact losses") {
-  ImpactDamperParams p = brief_case();
+  ImpactDamperParams p = saeki_ball_case();
   p.C = 0;
   for (double restitution : {0.6, 0.0}) {
     CAPTURE(restitution);
@@ -103,7 +105,7 @@ TEST_CASE("inelastic ball, undamped unforced primary: energy lost equals the imp
 TEST_CASE("plastic ball rides on the wall and leaves it when the wall decelerates") {
   // e = 0: the first impact is plastic; the ball then rides on the upper wall with M + m until
   // the primary passes x = 0 (x'' changes sign) and flies off at the common speed.
-  ImpactDamperParams p = brief_case();
+  ImpactDamperParams p = saeki_ball_case();
   p.C = 0;
   p.e = 0;
   const double x0 = 0.02, half = 0.5 * p.clearance;
@@ -135,7 +137,7 @@ TEST_CASE("plastic ball rides on the wall and leaves it when the wall decelerate
 
 TEST_CASE("no contact, undamped: forced response from rest matches the textbook solution") {
   // Rao, Mechanical Vibrations: x = F0 / (K - M W^2) (sin W t - (W / wn) sin wn t) from rest.
-  ImpactDamperParams p = brief_case();
+  ImpactDamperParams p = saeki_ball_case();
   p.C = 0;
   p.clearance = 1.0;  // m: the ball never reaches a wall
   p.frequency = 12;
@@ -154,7 +156,7 @@ TEST_CASE("no contact, undamped: forced response from rest matches the textbook 
 }
 
 TEST_CASE("massless ball: the primary follows the damped receptance although the ball bounces") {
-  ImpactDamperParams p = brief_case();
+  ImpactDamperParams p = saeki_ball_case();
   p.m = 0;              // the ball cannot push the primary
   p.clearance = 0.001;  // m, well inside the 3.2 mm swing: many impacts
   p.e = 0.8;
@@ -176,7 +178,7 @@ TEST_CASE("massless ball: the primary follows the damped receptance although the
 
 TEST_CASE("free decay without contact matches the damped free response") {
   // x = X0 e^{-zeta wn t} (cos wd t + zeta / sqrt(1 - zeta^2) sin wd t), released from rest.
-  ImpactDamperParams p = brief_case();
+  ImpactDamperParams p = saeki_ball_case();
   const double zeta = 0.05;
   p.C = 2 * zeta * std::sqrt(p.K * p.M);
   p.clearance = 1.0;
@@ -202,7 +204,7 @@ TEST_CASE("grazing contacts 1e-9 and 1e-12 of the swing deep are found at their 
   // for 2 sqrt(2e-9) / wn = 1e-6 s, at 1e-12 for 3e-8 s, midway between the search's first
   // samples (T/32 = 2e-3 s apart). The found time is late by the gap's round-off floor
   // (~1e-16 m) over the closing speed.
-  ImpactDamperParams p = brief_case();
+  ImpactDamperParams p = saeki_ball_case();
   p.C = 0;
   p.F0 = 0;
   p.e = 1;
@@ -226,13 +228,13 @@ TEST_CASE("grazing contacts 1e-9 and 1e-12 of the swing deep are found at their 
   }
 }
 
-TEST_CASE("brief case: ball at the slot centre settles at 3.24 mm, from a wall it is irregular") {
-  const ImpactDamperParams p = brief_case();
+TEST_CASE("ball on Saeki's primary at 15 Hz: from the slot centre 3.24 mm, from a wall irregular") {
+  const ImpactDamperParams p = saeki_ball_case();
   const double period = 1 / p.frequency;
   const double dt = period / 64;
   // Ball at rest at the centre: the 3.24 mm swing never reaches a wall (d/2 = 5 mm), so the
-  // primary settles on the receptance F0 / |K - M W^2 + i C W| = 3.2365 mm: the brief's 3.24 mm
-  // regime is the motion without impacts.
+  // primary settles on the receptance F0 / |K - M W^2 + i C W| = 3.2365 mm: the 3.24 mm regime
+  // is the motion without impacts.
   const ImpactDamperTrace centre = simulate_impact_damper(p, {}, 300 * period, dt);
   const double settled = first_harmonic_amplitude(centre.t, centre.x, p.frequency, 250 * period);
   MESSAGE("ball at the centre: first harmonic over periods 250-300 = " << settled * 1e3 << " mm");
@@ -242,7 +244,8 @@ TEST_CASE("brief case: ball at the slot centre settles at 3.24 mm, from a wall i
 
   // Ball at rest against the lower wall: impacts and chattering, an irregular motion whose
   // amplitude wanders from window to window (chaotic, so round-off decides the exact value).
-  // The brief reports 1.09 mm; a 200-period window lands between 0.8 and 1.6 mm.
+  // Another exact event-driven model read 1.09 mm; a 200-period window lands between 0.8 and
+  // 1.6 mm.
   const ImpactDamperState wall{0, 0, 0, -0.5 * p.clearance, 0};
   const ImpactDamperTrace irregular = simulate_impact_damper(p, wall, 300 * period, dt);
   const double late = first_harmonic_amplitude(irregular.t, irregular.x, p.frequency, 100 * period);
@@ -309,11 +312,11 @@ TEST_CASE("symmetric two-impact motion: a periodic orbit of the event model that
 }
 
 TEST_CASE("the reference rejects inputs outside its model") {
-  ImpactDamperParams p = brief_case();
+  ImpactDamperParams p = saeki_ball_case();
   CHECK_THROWS_AS(simulate_impact_damper(p, {0, 0, 0, 0.006, 0}, 1, 1e-3), std::invalid_argument);
   p.C = 2.5 * std::sqrt(p.K * p.M);  // overdamped
   CHECK_THROWS_AS(simulate_impact_damper(p, {}, 1, 1e-3), std::invalid_argument);
-  p = brief_case();
+  p = saeki_ball_case();
   p.e = 1.5;
   CHECK_THROWS_AS(simulate_impact_damper(p, {}, 1, 1e-3), std::invalid_argument);
 }

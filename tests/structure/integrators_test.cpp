@@ -15,7 +15,7 @@
 namespace pdsim {
 namespace {
 
-// Saeki's primary system (brief section 3) with light damping.
+// Saeki's (2002) primary system (as examples/saeki_250.toml) with light damping.
 constexpr double kMass = 2.37, kStiffness = 21500.0, kDampingRatio = 0.02;
 
 LinearStructure sdof(double damping_ratio) {

@@ -15,7 +15,7 @@
 namespace pdsim {
 namespace {
 
-// Aluminium strip 0.5 m x 30 mm x 5 mm (the brief's beam example), bending across the 5 mm.
+// Aluminium strip 0.5 m x 30 mm x 5 mm (examples/beam_damper.toml), bending across the 5 mm.
 Deck beam_deck(Support start, Support end, int elements) {
   Deck deck;
   deck.path = "inline.toml";
@@ -39,7 +39,7 @@ Deck sdof_deck() {
   Deck deck;
   deck.path = "inline.toml";
   deck.structure.kind = StructureKind::sdof;
-  deck.structure.mass = 2.37;  // Saeki's primary system (brief section 3)
+  deck.structure.mass = 2.37;  // Saeki's (2002) primary system, as examples/saeki_250.toml
   deck.structure.stiffness = 21500.0;
   deck.structure.damping = 1.0;
   deck.dampers.resize(2);
@@ -78,7 +78,7 @@ Modes modes_of(const LinearStructure& s) {
 }
 
 // Cantilever eigenvalues lambda_n L (Blevins, Formulas for Natural Frequency and Mode Shape,
-// table 8-1) and the FE errors the brief quotes for 8 Hermite elements with consistent mass.
+// table 8-1) and the FE errors of 8 Hermite elements with consistent mass (from above, O(h^4)).
 constexpr std::array<double, 4> kCantileverLambda = {1.87510407, 4.69409113, 7.85475744,
                                                      10.99554073};
 constexpr std::array<double, 4> kEightElementError = {2e-6, 8e-5, 6e-4, 2e-3};
@@ -412,7 +412,7 @@ TEST_CASE("format_modes lists modes with 6 significant digits") {
   CHECK(format_modes(hz, 10) == format_modes(hz, 0));
 }
 
-TEST_CASE("a parsed beam deck builds the cantilever of the brief") {
+TEST_CASE("a parsed beam deck builds the aluminium cantilever of examples/beam_damper.toml") {
   const Deck deck = parse_deck(R"(
 [structure]
 kind = "beam"

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Writes a LIGGGHTS read_data file (atom_style granular) of spheres on the pdsim lattice.
 
-The lattice is the one of brief section 5 (particles.fill = "lattice"): simple cubic, spacing
-1.02 d, the first centre 0.51 d from each lower wall, x fastest, then y, then z.
+The lattice is pdsim's particles.fill = "lattice" (io/decks.md): simple cubic, spacing 1.02 d,
+the first centre 0.51 d from each lower wall, x fastest, then y, then z.
 
 usage: make_lattice_data.py COUNT DIAMETER DENSITY LX LY LZ MARGIN_X MARGIN OUT.data [JITTER_Y]
 The simulation domain is the box [0,L] widened by MARGIN_X along x (the shaking stroke) and by

@@ -1,7 +1,10 @@
 #include "src/bed_file.hpp"
 
+#include "io/excitation.hpp"
+
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <sstream>
 
 namespace pdsim {
@@ -66,6 +69,29 @@ std::string damper_fingerprint(const Scene& scene) {
   std::string s;
   for (const DamperScene& d : scene.dampers) s += (s.empty() ? "" : " | ") + damper_text(d, false);
   return s;
+}
+
+std::optional<Results> read_bed_file(const Scene& scene, const SourcePos& where) {
+  const std::string& file = scene.bed.file;
+  if (file.empty() || !std::filesystem::exists(file)) return std::nullopt;
+  Results saved;
+  try {
+    saved = read_results(file);
+  } catch (const std::exception& e) {
+    throw InputError(where, "bed.file",
+                     "'" + file + "' is not a bed pdsim kept (" + e.what() +
+                         "); delete it or name another file");
+  }
+  const double held =
+      saved.meta_numbers.count("realisations") != 0 ? saved.meta_numbers.at("realisations") : 0.0;
+  const int first = runs_points(scene.excitation) ? scene.excitation.settle.realisations : 1;
+  const auto kept = saved.meta_text.find("bed_fingerprint");
+  if (kept == saved.meta_text.end() || kept->second != bed_fingerprint(scene) || held < first)
+    throw InputError(where, "bed.file",
+                     "'" + file +
+                         "' holds a bed settled for other particles, container, contact, "
+                         "gravity, dt or realisations; delete it or name another file");
+  return saved;
 }
 
 }  // namespace pdsim

@@ -1,8 +1,11 @@
 // A settled bed kept in a file (bed.file), and what decides whether it fits a deck.
 #pragma once
 
+#include <optional>
 #include <string>
 
+#include "io/results.hpp"
+#include "kernels/errors.hpp"
 #include "src/scene.hpp"
 
 namespace pdsim {
@@ -12,5 +15,11 @@ std::string bed_fingerprint(const Scene& scene);
 // The dampers' design (containers, laws, constants, particles' sizes and density, gravity),
 // without the fill's positions or the step: a damper map is refused for a deck of another.
 std::string damper_fingerprint(const Scene& scene);
+
+// The settled beds kept in the scene's bed.file, read and checked before any work (by `pdsim
+// check` and by a run): none when the file does not exist; an InputError at `where` (the deck's
+// bed.file) when it is not a pdsim results file, or holds beds settled for another scene
+// (bed_fingerprint()) or fewer than the run's first fills (settle.realisations).
+std::optional<Results> read_bed_file(const Scene& scene, const SourcePos& where);
 
 }  // namespace pdsim

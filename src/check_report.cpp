@@ -3,6 +3,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "src/bed_file.hpp"
 #include "src/format.hpp"
 #include "src/frequency_run.hpp"
 #include "src/run.hpp"
@@ -73,10 +74,16 @@ std::string check_report(const Deck& deck, const Scene& scene) {
           : settle.realisations > 1 ? " fills"
                                     : " fill")
       << ")\n";
-  if (deck.bed.settle)
+  if (deck.bed.settle) {
+    // A bed file the run would refuse is refused here, before any work.
+    const std::optional<Results> kept = read_bed_file(scene, deck.where("bed.file"));
     s << "bed: settled under gravity first, until no particle moves faster than " << scene.bed.speed
       << " m/s for " << kBedHold_s << " s (at most " << deck.bed.max_time << " s)"
-      << (deck.bed.file.empty() ? "" : "; kept in " + deck.bed.file) << "\n";
+      << (deck.bed.file.empty() ? ""
+          : kept                ? "; read from " + deck.bed.file + ", which holds it"
+                                : "; kept in " + deck.bed.file)
+      << "\n";
+  }
   // Estimated cost: simulated time x steps/s x particles, at an assumed 1e7 particle-steps/s.
   const double simulated = simulated_time_bound(deck);
   s << "simulated time: at most " << simulated << " s";

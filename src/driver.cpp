@@ -252,20 +252,12 @@ class Driver::Impl {
       if (beds_[r].empty()) missing.push_back(r);
     if (missing.empty()) return;
     const std::string& file = scenes_[0]->bed.file;
-    const std::string fingerprint = bed_fingerprint(*scenes_[0]);
-    if (!file.empty() && std::filesystem::exists(file)) {
-      Results saved = read_results(file);
-      const auto held = static_cast<std::size_t>(saved.meta_numbers["realisations"]);
-      if (saved.meta_text["bed_fingerprint"] != fingerprint || held < first)
-        throw InputError(
-            deck_.bed_file_at, "bed.file",
-            "'" + file +
-                "' holds a bed settled for other particles, container, "
-                "contact, gravity, dt or realisations; delete it or name another file");
+    if (std::optional<Results> saved = read_bed_file(*scenes_[0], deck_.bed_file_at)) {
+      const auto held = static_cast<std::size_t>(saved->meta_numbers["realisations"]);
       for (std::size_t r = 0; r < std::min(held, beds_.size()); ++r)
         if (beds_[r].empty()) {
-          beds_[r] = get_state(saved.checkpoint, "bed.r" + std::to_string(r) + ".");
-          reports_[r] = unpack_report(saved.checkpoint, r);
+          beds_[r] = get_state(saved->checkpoint, "bed.r" + std::to_string(r) + ".");
+          reports_[r] = unpack_report(saved->checkpoint, r);
         }
       bed_from_file_ = true;
       return;
@@ -273,7 +265,7 @@ class Driver::Impl {
     in_parallel(missing.size(), [&](std::size_t k) { settle_bed(missing[k], progress); });
     if (!file.empty()) {
       Results saved;
-      saved.meta_text["bed_fingerprint"] = fingerprint;
+      saved.meta_text["bed_fingerprint"] = bed_fingerprint(*scenes_[0]);
       saved.meta_text["deck"] = deck_.text;
       saved.meta_numbers["realisations"] = double(first);
       put_beds(saved.checkpoint, first);

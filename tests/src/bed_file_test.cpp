@@ -4,9 +4,11 @@
 #include <doctest/doctest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <unistd.h>
 
+#include "src/check_report.hpp"
 #include "src/run.hpp"
 #include "src/scene.hpp"
 
@@ -74,5 +76,28 @@ TEST_CASE("bed.file: reused for the same engines, refused when a derived constan
     CHECK_THROWS_WITH_AS(run(deck(file, restitution, axis)),
                          doctest::Contains("holds a bed settled for other particles"), InputError);
   }
+  fs::remove_all(dir);
+}
+
+TEST_CASE("bed.file: check refuses a file that is no kept bed, or one of another scene, first") {
+  const fs::path dir = fs::temp_directory_path() / ("pdsim_bed_check_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const std::string file = (dir / "bed.h5").string();
+  const Deck good = parse_deck(deck(file, 0.5, "[0, 0, 1]"), "bed.toml");
+  std::ofstream(file) << "not an HDF5 file\n";
+  // Where the run used to stop with exit 2 and HDF5's signature message, check names the key.
+  for (const std::string& text : {std::string("not a bed pdsim kept"), std::string("bed.file")}) {
+    CHECK_THROWS_WITH_AS(check_report(good, build_scene(good)), doctest::Contains(text.c_str()),
+                         InputError);
+    CHECK_THROWS_WITH_AS(run(deck(file, 0.5, "[0, 0, 1]")), doctest::Contains(text.c_str()),
+                         InputError);
+  }
+  fs::remove(file);
+  CHECK(check_report(good, build_scene(good)).find("kept in " + file) != std::string::npos);
+  run(deck(file, 0.5, "[0, 0, 1]"));
+  CHECK(check_report(good, build_scene(good)).find("read from " + file) != std::string::npos);
+  const Deck other = parse_deck(deck(file, 0.6, "[0, 0, 1]"), "bed.toml");
+  CHECK_THROWS_WITH_AS(check_report(other, build_scene(other)),
+                       doctest::Contains("holds a bed settled for other particles"), InputError);
   fs::remove_all(dir);
 }

@@ -452,7 +452,8 @@ class Driver::Impl {
     // with the amplitude as below it overshot the remaining time 2-3 fold, keeping the fills of
     // the highest point fell 50 % short; this was within 10 %.)
     auto learned = [&](double amplitude) -> std::pair<double, double> {
-      if (finished.empty()) return {double(excitation().settle.min_periods), double(fills_min_)};
+      if (finished.empty())  // not called before a point has finished (judge_ready())
+        return {double(excitation().settle.max_periods), double(fills_max_)};
       auto at = [&](std::size_t k) {
         const std::size_t s = finished[k].second;
         return std::pair<double, double>{seen[s].periods, double(want_[s])};
@@ -536,7 +537,11 @@ class Driver::Impl {
       finished_step(s);
       if (stopped_) return;
     }
-    if (runs_to_steady_state(excitation()))
+    // The model learns from finished points: before the first, it knows no point's cost (it
+    // took min_periods for each, and the running point overtook that: "100 %, ETA 0 s" for
+    // minutes), so the line says "ETA after the first frequency" until one is done.
+    if (runs_to_steady_state(excitation()) &&
+        std::any_of(done_.begin(), done_.end(), [](char d) { return d != 0; }))
       progress_->set_work(simulated_ - simulated_start_, planned_remaining());
   }
 

@@ -108,6 +108,8 @@ class FrequencyRun {
     bool fixed = false, prescribed = false;
     PeriodTracker tracker;
     Floors floors;  // the half-widths a look found enough (none: the tolerance's)
+    // A look's pass keeps the last half of the periods (the first of them; -1: MSER's warm-up).
+    int look_first = -1;
   };
   std::optional<Ongoing> ongoing_;
   std::atomic<int> periods_running_{0};

@@ -385,8 +385,10 @@ namespace pdsim {
 namespace {
 
 // Mean of the fills `members` (indices into fills) about their mean direction; see GroupMean.
+// `moved`: per fill, the change of a fill that counts though it still moved at the cap (0 for
+// the others); their sum over the members, divided by their number, widens the mean's interval.
 GroupMean group_mean(const std::vector<FillValue>& fills, const std::vector<int>& members,
-                     double tolerance) {
+                     double tolerance, const std::vector<double>& moved) {
   GroupMean g;
   g.fills = static_cast<int>(members.size());
   std::complex<double> sum = 0;
@@ -410,6 +412,9 @@ GroupMean group_mean(const std::vector<FillValue>& fills, const std::vector<int>
   const Combined amplitude = combine_runs(a, 0.5 * tolerance * typical);
   const Combined phase = combine_runs(q, 0.5 * tolerance);
   g.amplitude = amplitude.interval;
+  double shift = 0;  // the most the fills still moving at the cap can move the mean
+  for (int k : members) shift += moved[std::size_t(k)] / double(members.size());
+  g.amplitude.half_width += shift;
   g.phase = {std::arg(along * std::polar(1.0, phase.interval.mean)),
              std::min(kPi, phase.interval.half_width)};
   g.consistent = amplitude.consistent && phase.consistent;
@@ -427,23 +432,32 @@ GroupMean group_mean(const std::vector<FillValue>& fills, const std::vector<int>
 
 Ensemble judge_ensemble(const std::vector<FillValue>& given, double tolerance, bool last) {
   // A fill still moving at max_periods (drifting, or too slow a wander for two batches) counts
-  // when its fitted change over its retained periods is small beside the fills' spread, with
-  // that whole change added to its half-width: its mean lies half the change from where it
-  // ended, and the state it was heading for lies beyond, by an amount the change bounds while
-  // a climb slows. A wander too slow for an interval keeps none (its value counts through the
-  // spread, as a fill held still with a wide interval does).
+  // when its fitted change over its retained periods (the drift) is within the spread of the
+  // damper's states, the standard deviation of the fills' amplitudes (or the tolerance, where
+  // the fills agree closer): it is then a member of the ensemble whose place is known to that
+  // change. Its mean lies half the change from where it ended, and the state it was heading for
+  // lies beyond by an amount the change bounds while a climb slows, so the whole change is added
+  // to its half-width, and to the ensemble mean's half-width the most such fills can move it,
+  // the sum of their changes over the number of fills. A larger change is a fill that has not
+  // reached any of the states the others show: the point is not a result. (A wander too slow
+  // for an interval keeps none: its value counts through the spread.)
   std::vector<FillValue> fills = given;
-  std::vector<std::complex<double>> values;
-  for (const FillValue& f : given) values.push_back(f.harmonic);
-  const double allowed = spread_floors(values).amplitude;
-  for (FillValue& f : fills)
-    if (!f.settled && f.drift <= allowed) f.settled = true, f.amplitude_ci += f.drift;
+  const int n = static_cast<int>(fills.size());
+  std::vector<double> amplitudes;
+  for (const FillValue& f : given) amplitudes.push_back(std::abs(f.harmonic));
+  const double allowed =
+      n < 2 ? 0 : std::max(sample_sd(amplitudes), tolerance * mean_of(amplitudes));
+  std::vector<double> moved(static_cast<std::size_t>(n), 0.0);
+  for (int k = 0; k < n; ++k) {
+    FillValue& f = fills[std::size_t(k)];
+    if (!f.settled && f.drift <= allowed)
+      f.settled = true, f.amplitude_ci += f.drift, moved[std::size_t(k)] = f.drift;
+  }
   Ensemble e;
   e.fills = fills;
-  const int n = static_cast<int>(fills.size());
   std::vector<int> all(static_cast<std::size_t>(n));
   for (int k = 0; k < n; ++k) all[std::size_t(k)] = k;
-  e.mean = group_mean(fills, all, tolerance);
+  e.mean = group_mean(fills, all, tolerance, moved);
   // Branches: single linkage over the fills' complex harmonics (a union-find of the links).
   std::vector<int> root(all);
   auto find = [&](int k) {
@@ -470,7 +484,7 @@ Ensemble judge_ensemble(const std::vector<FillValue>& given, double tolerance, b
     groups[std::size_t(g)].push_back(k);
   }
   for (const auto& members : groups) {
-    GroupMean g = group_mean(fills, members, tolerance);
+    GroupMean g = group_mean(fills, members, tolerance, moved);
     // The share of the fills, with the Wilson score interval (95 %) of a binomial proportion.
     const double p = double(g.fills) / n, z = 1.959963984540054, z2 = z * z;
     const double centre = (p + z2 / (2.0 * n)) / (1 + z2 / n);
@@ -495,7 +509,9 @@ Ensemble judge_ensemble(const std::vector<FillValue>& given, double tolerance, b
   e.branch = std::move(sorted);
 
   int unsettled = 0;
-  for (const FillValue& f : fills) unsettled += f.settled ? 0 : 1;
+  bool measured = true;  // every fill still moving has a change to judge against the spread
+  for (const FillValue& f : fills)
+    if (!f.settled) ++unsettled, measured = measured && std::isfinite(f.drift);
   char text[96];
   if (n == 0) {
     e.reason = "no fills";
@@ -503,6 +519,9 @@ Ensemble judge_ensemble(const std::vector<FillValue>& given, double tolerance, b
     std::snprintf(text, sizeof text, "%d of %d fills not settled on their own (drifting)",
                   unsettled, n);
     e.reason = text;
+    // More fills measure the spread that such a fill's change is judged against (with two,
+    // their standard deviation is known to within a factor of 30 at 95 %).
+    e.wants_fills = !last && measured;
   } else if (e.mean.within(tolerance)) {
     e.result = e.branch.size() > 1 ? PointResult::branches : PointResult::one_state;
   } else {

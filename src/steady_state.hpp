@@ -75,8 +75,9 @@ Floors spread_floors(const std::vector<std::complex<double>>& fills);
 // warm-up found, and also from the last half of its periods alone. A fill climbing to its state
 // after a step (a time constant of 60-80 periods near the Saeki resonance) leaves a tail that
 // MSER's warm-up keeps: at a floor of 4.7 % a bias of -7.6 % of the level (T = 80), against
-// -2.8 % with the last half too; 8 fills climbing with T = 60 end -1.8 % low, the tolerance
-// alone -0.7 % (steady_state_test, resonance_statistics.md).
+// -2.8 % with the last half too; 8 fills climbing with T = 60 end -1.8 % low with MSER's
+// mean, -1.0 % with the last half's (the value a look keeps: FrequencyRun::look()), the
+// tolerance alone -0.7 % (steady_state_test, resonance_statistics.md).
 bool known_at_look(const std::vector<std::complex<double>>& series,
                    const SteadyStateCriteria& criteria);
 
@@ -153,15 +154,17 @@ struct Ensemble {
   std::vector<FillValue> fills;   // as judged: a drift that counts is in its half-width
   PointResult result = PointResult::none;
   // More fills would help: every fill settled, but the ensemble mean's interval misses the
-  // tolerance (its branches may each meet it: a result of several branches all the same).
+  // tolerance (its branches may each meet it: a result of several branches all the same); or
+  // a fill still moving at max_periods, whose change more fills' spread would judge.
   bool wants_fills = false;
   std::string reason;  // why not a result, or what the branches are ("" for one state)
 };
 // Result rules: every fill must have settled on its own, or moved over its retained periods at
-// max_periods (drifting, or wandering too slowly for two batches) by no more than
-// kSpreadFraction of the spread of the fills' amplitudes (it then counts with that change added
-// to its half-width: its value lies within it of where the fill was heading); else not a result
-// (a fill still moving at max_periods by more); then one state when the
+// max_periods (drifting, or wandering too slowly for two batches) by no more than the standard
+// deviation of the fills' amplitudes, or the tolerance where they agree closer (it then counts
+// with that change added to its half-width, and the ensemble mean's half-width grows by the sum
+// of such changes over the number of fills); else not a result (a fill still moving at
+// max_periods by more); then one state when the
 // ensemble mean amplitude's interval meets `tolerance` (relative), several branches when there are
 // two or more and each branch's mean meets it (the ensemble mean then carries its wide interval).
 // With `last` (no more fills will come: settle.max_realisations reached), fills that are distinct

@@ -74,9 +74,10 @@ std::string check_report(const Deck& deck, const Scene& scene) {
           : settle.realisations > 1 ? " fills"
                                     : " fill")
       << ")\n";
+  // A bed file the run would refuse is refused here, before any work (a run reads it whether
+  // or not the bed settles).
+  const std::optional<Results> kept = read_bed_file(scene, deck.where("bed.file"));
   if (deck.bed.settle) {
-    // A bed file the run would refuse is refused here, before any work.
-    const std::optional<Results> kept = read_bed_file(scene, deck.where("bed.file"));
     s << "bed: settled under gravity first, until no particle moves faster than " << scene.bed.speed
       << " m/s for " << kBedHold_s << " s (at most " << deck.bed.max_time << " s)"
       << (deck.bed.file.empty() ? ""

@@ -54,8 +54,8 @@ class FrequencyRun {
   // starts it (configure, predicted start); run_until(n) runs periods until the point is done
   // on its own (converged to the tolerance, or max_periods: returns true) or has n periods;
   // judge() says what its periods show now; look(floors) judges them with the floors that the
-  // fills' spread allows (known_at_look()) and, when they pass, keeps those floors for
-  // finish(), which ends the point.
+  // fills' spread allows (known_at_look()) and, when they pass, keeps those floors and the
+  // last half of the periods (its mean is the fill's value) for finish(), which ends the point.
   void begin_point(double frequency, double amplitude);
   bool run_until(int periods);
   Stationary judge() const;

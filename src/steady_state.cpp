@@ -457,7 +457,8 @@ Ensemble judge_ensemble(const std::vector<FillValue>& given, double tolerance, b
   e.fills = fills;
   std::vector<int> all(static_cast<std::size_t>(n));
   for (int k = 0; k < n; ++k) all[std::size_t(k)] = k;
-  e.mean = group_mean(fills, all, tolerance, moved);
+  // Judged on the fills' own half-widths (the changes widen the mean once, in group_mean()).
+  e.mean = group_mean(given, all, tolerance, moved);
   // Branches: single linkage over the fills' complex harmonics (a union-find of the links).
   std::vector<int> root(all);
   auto find = [&](int k) {
@@ -467,7 +468,7 @@ Ensemble judge_ensemble(const std::vector<FillValue>& given, double tolerance, b
   };
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j) {
-      const FillValue &a = fills[std::size_t(i)], &b = fills[std::size_t(j)];
+      const FillValue &a = given[std::size_t(i)], &b = given[std::size_t(j)];
       const double gap = std::fabs(std::abs(a.harmonic) - std::abs(b.harmonic));
       const double larger = std::max(std::abs(a.harmonic), std::abs(b.harmonic));
       // A fill without an interval of its own (too correlated for batch means) links by the
@@ -484,7 +485,7 @@ Ensemble judge_ensemble(const std::vector<FillValue>& given, double tolerance, b
     groups[std::size_t(g)].push_back(k);
   }
   for (const auto& members : groups) {
-    GroupMean g = group_mean(fills, members, tolerance, moved);
+    GroupMean g = group_mean(given, members, tolerance, moved);
     // The share of the fills, with the Wilson score interval (95 %) of a binomial proportion.
     const double p = double(g.fills) / n, z = 1.959963984540054, z2 = z * z;
     const double centre = (p + z2 / (2.0 * n)) / (1 + z2 / n);

@@ -911,6 +911,21 @@ std::string written(const toml::node& node) {
   return s.str();
 }
 
+// Every value of a parsed deck by its dotted name ("damper[0].container.size"), as written().
+void flatten(const toml::node& node, const std::string& key,
+             std::map<std::string, std::string>& out) {
+  if (const auto* t = node.as_table()) {
+    for (auto&& [name, value] : *t)
+      flatten(value, key.empty() ? std::string(name.str()) : key + "." + std::string(name.str()),
+              out);
+  } else if (const auto* a = node.as_array(); a && !a->empty() && a->is_array_of_tables()) {
+    for (std::size_t i = 0; i < a->size(); ++i)
+      flatten((*a)[i], key + "[" + std::to_string(i) + "]", out);
+  } else {
+    out[key] = written(node);
+  }
+}
+
 SweepSpec read_sweep(const toml::table& table, const std::string& path) {
   // Deck order, not the table's (alphabetical) order.
   std::vector<std::pair<const toml::key*, const toml::node*>> entries;
@@ -1201,6 +1216,32 @@ std::vector<std::string> sbatch_options(const std::string& text, const std::stri
   if (!options.empty() && options.front().rfind('-', 0) != 0)  // later words may be values
     throw InputError(named + "expected options starting with -, got '" + options.front() + "'");
   return options;
+}
+
+std::vector<DeckChange> deck_changes(const std::string& before, const std::string& after) {
+  std::map<std::string, std::string> was, now;
+  flatten(parse_root(before, "(before)"), "", was);
+  flatten(parse_root(after, "(after)"), "", now);
+  std::vector<DeckChange> changes;
+  for (const auto& [key, value] : now)
+    if (const auto it = was.find(key); it == was.end() || it->second != value)
+      changes.push_back({key, it == was.end() ? "absent" : it->second, value});
+  for (const auto& [key, value] : was)
+    if (!now.count(key)) changes.push_back({key, value, "absent"});
+  std::sort(changes.begin(), changes.end(),
+            [](const DeckChange& a, const DeckChange& b) { return a.key < b.key; });
+  // pdsim's own notes, which carry a sweep point's values, a map run's motion or --snapshots.
+  const auto notes = [](const std::string& text) {
+    std::string found;
+    std::istringstream lines(text);
+    for (std::string line; std::getline(lines, line);)
+      if (line.rfind("# pdsim ", 0) == 0 || line.rfind("# sweep point ", 0) == 0)
+        found += (found.empty() ? "\"" : "; \"") + line.substr(2) + "\"";
+    return found.empty() ? std::string("none") : found;
+  };
+  if (notes(before) != notes(after))
+    changes.push_back({"pdsim's note", notes(before), notes(after)});
+  return changes;
 }
 
 Deck sweep_point(const Deck& deck, int point) {

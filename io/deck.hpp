@@ -67,6 +67,16 @@ Deck with_snapshots(Deck deck, double every);
 std::vector<std::string> sbatch_options(const std::string& text, const std::string& what,
                                         bool defined = true);
 
+// A key whose value differs between two decks (each a valid deck's text): its dotted name and
+// both values as written ("absent" where one deck lacks it). Layout, comments and the order of
+// keys are no change, but for pdsim's own notes (a sweep point's values, a map run's motion,
+// --snapshots), compared as the key "pdsim's note".
+struct DeckChange {
+  std::string key, before, after;
+};
+// Every change from deck text `before` to `after`, by key.
+std::vector<DeckChange> deck_changes(const std::string& before, const std::string& after);
+
 // Sweep point `point` (1 to deck.sweep.points()) of a deck: the deck with that point's values,
 // validated. An error names the [sweep] entry that set the value, and the point.
 Deck sweep_point(const Deck& deck, int point);

@@ -6,20 +6,16 @@
 
 #include "io/results.hpp"
 #include "kernels/errors.hpp"
+#include "src/identity.hpp"
 #include "src/scene.hpp"
 
 namespace pdsim {
 
-// Everything that decides a settled bed: a bed file made for other particles is refused.
-std::string bed_fingerprint(const Scene& scene);
-// The dampers' design (containers, laws, constants, particles' sizes and density, gravity),
-// without the fill's positions or the step: a damper map is refused for a deck of another.
-std::string damper_fingerprint(const Scene& scene);
-
 // The settled beds kept in the scene's bed.file, read and checked before any work (by `pdsim
 // check` and by a run): none when the file does not exist; an InputError at `where` (the deck's
 // bed.file) when it is not a pdsim results file, or holds beds settled for another scene
-// (bed_fingerprint()) or fewer than the run's first fills (settle.realisations).
+// (naming the fields of its identity that differ) or fewer than the run's first fills
+// (settle.realisations).
 std::optional<Results> read_bed_file(const Scene& scene, const SourcePos& where);
 
 }  // namespace pdsim

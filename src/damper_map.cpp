@@ -10,7 +10,7 @@
 
 #include "io/excitation.hpp"
 #include "pdsim_version.hpp"
-#include "src/bed_file.hpp"
+#include "src/identity.hpp"
 #include "src/format.hpp"
 #include "src/slurm.hpp"
 
@@ -51,7 +51,7 @@ Deck prescribed_run(const Deck& deck, const Vec3& axis, const std::vector<double
   d.output.file = file;
   d.output.particles_every = 0;
   d.output.energy = false;
-  // The runs share one settled bed (the fingerprint checks that it is theirs).
+  // The runs share one settled bed (its identity checks that it is theirs).
   if (d.bed.file.empty()) d.bed.file = (fs::path(file).parent_path() / "bed.h5").string();
   std::ostringstream note;
   note.precision(17);
@@ -216,9 +216,9 @@ std::optional<Results> finished_run(const Deck& run) {
   std::error_code ignored;
   if (!fs::exists(run.output.file, ignored)) return std::nullopt;
   Results done = read_results(run.output.file);
-  if (done.meta_text["deck"] != run.text)
-    throw InputError(run.output.file +
-                     ": a run of another map (the deck changed); run the map anew with --force");
+  if (const std::string changed = changes_since(done, run, nullptr); !changed.empty())
+    throw InputError(run.output.file + ": a run of another map (the deck changed: " + changed +
+                     "); run the map anew with --force");
   return done;
 }
 
@@ -372,7 +372,7 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   map.meta_numbers = results.front().meta_numbers;
   map.meta_text["deck"] = deck.text;
   map.meta_text["deck_path"] = deck.path;
-  map.meta_text["damper"] = damper_fingerprint(build_scene(runs.front()));
+  map.meta_text["identity"] = identity_text(scene_identity(build_scene(runs.front())));
   map.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
   map.meta_text.erase("coupling");  // a prescribed motion couples nothing
   for (Results& r : results)

@@ -13,6 +13,7 @@
 #include "src/bed_file.hpp"
 #include "src/format.hpp"
 #include "src/frequency_run.hpp"
+#include "src/identity.hpp"
 #include "src/interrupt.hpp"
 #include "src/point_checkpoint.hpp"
 #include "src/point_rows.hpp"
@@ -265,7 +266,7 @@ class Driver::Impl {
     in_parallel(missing.size(), [&](std::size_t k) { settle_bed(missing[k], progress); });
     if (!file.empty()) {
       Results saved;
-      saved.meta_text["bed_fingerprint"] = bed_fingerprint(*scenes_[0]);
+      saved.meta_text["identity"] = identity_text(scene_identity(*scenes_[0]));
       saved.meta_text["deck"] = deck_.text;
       saved.meta_numbers["realisations"] = double(first);
       put_beds(saved.checkpoint, first);
@@ -786,6 +787,7 @@ class Driver::Impl {
     auto& n = r.meta_numbers;
     t["deck"] = deck_.text;
     t["deck_path"] = deck_.path;
+    t["identity"] = identity_text(scene_identity(*scenes_[0]));
     if (!deck_.sweep_point.empty()) t["sweep_point"] = deck_.sweep_point;
     t["title"] = deck_.title;
     t["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";

@@ -12,7 +12,7 @@
 
 #include "io/excitation.hpp"
 #include "pdsim_version.hpp"
-#include "src/bed_file.hpp"
+#include "src/identity.hpp"
 #include "src/coupled_system.hpp"
 #include "src/format.hpp"
 
@@ -252,20 +252,22 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   Results source;
   // Built on the CPU: a prediction needs no device, whatever the deck's backend.
   const Scene scene = build_scene(deck, 1, Backend::cpu);
-  const std::string damper = damper_fingerprint(scene);
+  const Identity damper = scene_identity(scene);
   for (const std::string& file : options.maps) {
     if (!fs::exists(file)) throw InputError(file + ": no such map file");
     Results one = read_results(file);
     if (one.map.frequency.empty())
       throw InputError(file + ": holds no /map (a file that pdsim map writes)");
-    if (!one.meta_text.count("damper") || one.map.sweep.size() != one.map.frequency.size())
+    if (!one.meta_text.count("identity") || one.map.sweep.size() != one.map.frequency.size())
       throw InputError(file +
-                       ": a map from a pdsim before maps recorded their damper; make it again "
-                       "from its finished runs with pdsim map DECK --resume (its runs are kept)");
-    if (one.meta_text["damper"] != damper)
-      throw InputError(file +
-                       ": a map of another damper than the deck's (containers, contact "
-                       "laws and constants, particles' sizes, density or gravity differ)");
+                       ": a map from a pdsim before maps recorded their damper field by field; "
+                       "make it again from its finished runs with pdsim map DECK --resume (its "
+                       "runs are kept)");
+    if (const std::string differ =
+            identity_difference(parse_identity(one.meta_text["identity"]), damper,
+                                IdentityScope::design, "in the map", "in the deck");
+        !differ.empty())
+      throw InputError(file + ": a map of another damper than the deck's (" + differ + ")");
     append_rows(source.map, one.map);
   }
   std::vector<std::pair<int, MapInterpolant>> maps;

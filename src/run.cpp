@@ -9,6 +9,7 @@
 #include "io/xdmf.hpp"
 #include "src/driver.hpp"
 #include "src/frequency_run.hpp"
+#include "src/identity.hpp"
 #include "src/interrupt.hpp"
 #include "src/summary.hpp"
 #include "src/sweep.hpp"
@@ -116,6 +117,24 @@ Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
   return driver.run({}, 0);
 }
 
+std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene) {
+  const auto kept = [](const std::string& key) {
+    return key == "title" || key == "solver.threads" || key.rfind("cluster.", 0) == 0;
+  };
+  std::string out;
+  const auto text = saved.meta_text.find("deck");
+  for (const DeckChange& c :
+       deck_changes(text == saved.meta_text.end() ? "" : text->second, deck.text))
+    if (!kept(c.key))
+      out += (out.empty() ? "" : "; ") + c.key + ": " + c.before + " then, " + c.after + " now";
+  // What the deck's text does not hold: a mesh file's triangles, a default of this pdsim.
+  const auto id = saved.meta_text.find("identity");
+  if (scene && out.empty() && id != saved.meta_text.end())
+    out = identity_difference(parse_identity(id->second), scene_identity(*scene),
+                              IdentityScope::bed, "then", "now");
+  return out;
+}
+
 // Free space below which a run warns before it starts, bytes.
 constexpr std::uintmax_t kLowSpace = 64u << 20;
 
@@ -164,10 +183,9 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
     if (!fs::exists(partial))
       throw InputError(partial + ": nothing to resume (no checkpoint of an interrupted run)");
     Results saved = read_results(partial);
-    if (saved.meta_text["deck"] != deck.text)
-      throw InputError(partial +
-                       ": the deck changed since the interrupted run; run it anew "
-                       "without --resume");
+    if (const std::string changed = changes_since(saved, deck, &scene); !changed.empty())
+      throw InputError(partial + ": the deck changed since the interrupted run (" + changed +
+                       "); run it anew without --resume");
     if (saved.checkpoint.empty())
       throw InputError(partial + ": holds no checkpoint; run it anew without --resume");
     driver.resume_from(saved);

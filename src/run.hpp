@@ -43,6 +43,12 @@ double simulated_time_bound(const Deck& deck);
 // Memory a run of the deck needs on `threads` threads, MiB (generous: for a scheduler's request).
 double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads);
 
+// Why `saved` (a file an earlier run of `deck` wrote: a checkpoint, a map's run) cannot be
+// continued or kept by `deck` and its `scene` (none: the keys alone) now, naming each changed
+// key and compiled field (src/identity.hpp); "" when nothing changed but keys that cannot alter
+// finished points (title, solver.threads, [cluster]: io/decks.md).
+std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene);
+
 // Runs the deck to completion and writes its results. Throws InputError for user errors
 // (existing output without --force, resume mismatch) and SimulationError for blow-ups.
 RunReport run_deck(const Deck& deck, const RunOptions& options);

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
 #include <unistd.h>
 
 #include "src/check_report.hpp"
@@ -69,12 +70,15 @@ TEST_CASE("bed.file: reused for the same engines, refused when a derived constan
   const Results again = run(deck(file, 0.5, "[0, 0, 1]"));
   CHECK(again.meta_text.at("bed") == "read from " + file);
   CHECK(again.frf.amplitude == first.frf.amplitude);  // the same bed, the same run
-  // Restitution changes only the derived damping factor; the axis only the orientation.
-  for (const auto& [restitution, axis] :
-       {std::pair{0.6, std::string("[0, 0, 1]")}, std::pair{0.5, std::string("[1, 0, 0]")}}) {
+  // Restitution changes the derived damping factor (and the step it sets); the axis only the
+  // orientation. Each field is named.
+  for (const auto& [restitution, axis, field] :
+       {std::tuple{0.6, std::string("[0, 0, 1]"), "contact.damping_factor: "},
+        std::tuple{0.5, std::string("[1, 0, 0]"),
+                   "damper[0].container.axis: absent in the file, "
+                   "1 0 0 in the deck"}}) {
     CAPTURE(axis);
-    CHECK_THROWS_WITH_AS(run(deck(file, restitution, axis)),
-                         doctest::Contains("holds a bed settled for other particles"), InputError);
+    CHECK_THROWS_WITH_AS(run(deck(file, restitution, axis)), doctest::Contains(field), InputError);
   }
   fs::remove_all(dir);
 }
@@ -98,6 +102,6 @@ TEST_CASE("bed.file: check refuses a file that is no kept bed, or one of another
   CHECK(check_report(good, build_scene(good)).find("read from " + file) != std::string::npos);
   const Deck other = parse_deck(deck(file, 0.6, "[0, 0, 1]"), "bed.toml");
   CHECK_THROWS_WITH_AS(check_report(other, build_scene(other)),
-                       doctest::Contains("holds a bed settled for other particles"), InputError);
+                       doctest::Contains("contact.damping_factor: "), InputError);
   fs::remove_all(dir);
 }

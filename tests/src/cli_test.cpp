@@ -259,6 +259,36 @@ TEST_CASE("a stepped sine stopped after one frequency and resumed gives the same
   }
 }
 
+// A change to the deck that can alter finished points is refused by name; a new title, thread
+// count or layout resumes (io/decks.md).
+TEST_CASE("--resume after editing the deck: refused naming the key, unless it cannot matter") {
+  Sandbox box;
+  std::string text;
+  {
+    std::ifstream in(deck("tiny_stepped_sine.toml"));
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const fs::path path = box.dir / "edited.toml";
+  std::ofstream(path) << text;
+  REQUIRE(box.pdsim("run --quiet --threads 1 -o e.h5 --stop-after 1 edited.toml") == 0);
+  std::string edited = text;
+  edited.replace(edited.find("restitution = 0.5"), 17, "restitution = 0.55");
+  edited.replace(edited.find("count = 20"), 10, "count = 21");
+  std::ofstream(path) << edited;
+  std::string log;
+  CHECK(box.pdsim("run --quiet -o e.h5 --resume edited.toml", &log) == 1);
+  CHECK(log.find("the deck changed since the interrupted run (contact.restitution: 0.5 then, 0.55 "
+                 "now; damper[0].particles.count: 20 then, 21 now)") != std::string::npos);
+  edited = "# a comment\n" + text;
+  edited.replace(edited.find("tiny stepped sine"), 17, "tiny stepped sine, renamed");
+  edited += "[solver]\nthreads = 2\n";
+  std::ofstream(path) << edited;
+  REQUIRE(box.pdsim("run --quiet -o e.h5 --resume edited.toml", &log) == 0);
+  const pdsim::Results r = pdsim::read_results((box.dir / "e.h5").string());
+  CHECK(r.frf.frequency == std::vector<double>{15.0, 16.0});
+  CHECK(r.meta_text.at("title") == "tiny stepped sine, renamed");
+}
+
 TEST_CASE("independent frequencies stopped and resumed keep every point and time series") {
   Sandbox box;
   const fs::path path = box.dir / "independent.toml";

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "src/damper_map.hpp"
 #include "src/predict.hpp"
@@ -107,11 +108,39 @@ TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once i
   predict.output = (dir / "hb.h5").string();
   CHECK(read_results(run_predict(parse_deck(host, "host.toml"), predict).output)
             .frf_hb.frequency.size() >= 1);
-  std::string other = kBallDeck;
-  other.replace(other.find("friction = 0.3"), 14, "friction = 0.2");
+  // Each field that makes another damper is named, with its value in the map and in the deck.
   predict.force = true;
-  CHECK_THROWS_WITH_AS(run_predict(parse_deck(other, "other.toml"), predict),
-                       doctest::Contains("a map of another damper"), InputError);
+  struct Edit {
+    std::string from, to;
+    std::vector<std::string> said;
+  };
+  const Edit edits[] = {
+      {"size = [0.03",
+       "size = [0.04",
+       {"damper[0].container: box 0.03 x 0.03 x 0.02 m in the map, box 0.04 x 0.03 x 0.02 m "
+        "in the deck"}},
+      {"diameter = 0.004",
+       "diameter = 0.005",
+       {"damper[0].particles.diameter: 0.004 m in the map, 0.005 m in the deck"}},
+      {"friction = 0.3", "friction = 0.2", {"contact.friction: 0.3 in the map, 0.2 in the deck"}},
+      {"-9.81]", "-9.8]", {"gravity: 0 0 -9.81 m/s^2 in the map, 0 0 -9.8 m/s^2 in the deck"}},
+      {"threads = 1",
+       "threads = 1\ndt = 1.0e-5",
+       {"solver.dt: ", " s in the map, 1e-05 s in the deck"}}};
+  for (const Edit& edit : edits) {
+    std::string other = kBallDeck;
+    other.replace(other.find(edit.from), edit.from.size(), edit.to);
+    CAPTURE(edit.to);
+    std::string message;
+    try {
+      run_predict(parse_deck(other, "other.toml"), predict);
+    } catch (const InputError& e) {
+      message = e.what();
+    }
+    CAPTURE(message);
+    CHECK(message.find("a map of another damper than the deck's") != std::string::npos);
+    for (const std::string& part : edit.said) CHECK(message.find(part) != std::string::npos);
+  }
   predict.maps = {again.output, again.output};
   CHECK_THROWS_WITH_AS(run_predict(deck, predict), doctest::Contains("twice"), InputError);
   fs::remove_all(dir);

@@ -5,6 +5,7 @@
 #include <CGAL/AABB_tree.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/IO/STL.h>
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/orientation.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
@@ -95,6 +96,19 @@ TriangleMesh read_stl(const std::string& path, double scale) {
   Mesh mesh = surface(m);
   if (pmp::does_self_intersect(mesh))
     throw InputError(path + ": its triangles cross each other (a self-intersecting surface)");
+  // A second shell, inside the first (an obstacle) or beside it (a second cavity), would be
+  // taken as more cavity: its volume added, its walls facing the wrong way for an obstacle.
+  auto shell = mesh.add_property_map<Mesh::Face_index, std::size_t>("f:shell").first;
+  if (const std::size_t shells = pmp::connected_components(mesh, shell); shells > 1) {
+    std::vector<std::size_t> sizes(shells);
+    for (Mesh::Face_index f : mesh.faces()) ++sizes[shell[f]];
+    std::string counts;
+    for (std::size_t s : sizes) counts += (counts.empty() ? "" : ", ") + std::to_string(s);
+    throw InputError(path + ": its triangles form " + std::to_string(shells) +
+                     " separate closed surfaces (of " + counts +
+                     " triangles); expected one: a container is one cavity, without obstacles "
+                     "inside it");
+  }
   if (!pmp::is_outward_oriented(mesh))
     for (auto& t : m.triangles) std::swap(t[1], t[2]);  // inward throughout: turned
   m.volume = std::abs(pmp::volume(mesh));

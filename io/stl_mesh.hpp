@@ -21,7 +21,8 @@ constexpr double kDefaultCurvature = 1.0;
 // what is wrong: unreadable or empty, a coordinate that is not a number, an edge of one
 // triangle only (not closed: the first such edge, by its end points), an edge that two
 // triangles run the same way (a flipped triangle: the first), an edge of more than two
-// triangles, triangles that cross each other, or no volume.
+// triangles, triangles that cross each other, more than one closed surface (a shell inside
+// another, or beside it), or no volume.
 TriangleMesh read_stl(const std::string& path, double scale);
 
 // A mesh container from `path`: read_stl(), its surfaces (mesh_surface()), the widest sphere

@@ -84,7 +84,8 @@ TEST_CASE("stl: a sphere of 2,000+ triangles encloses 4/3 pi r^3 to its facets' 
   fs::remove_all(fs::path(scratch("x")).parent_path());
 }
 
-TEST_CASE("stl: open, flipped, self-intersecting, empty and NaN meshes are refused by name") {
+TEST_CASE(
+    "stl: open, flipped, self-intersecting, nested, empty and NaN meshes are refused by name") {
   std::vector<Triangle> open = box(1, 1, 1);
   open.pop_back();
   refused(ascii(open, "open.stl"), "not closed: the edge from");
@@ -94,6 +95,13 @@ TEST_CASE("stl: open, flipped, self-intersecting, empty and NaN meshes are refus
   std::vector<Triangle> crossing = box(1, 1, 1);
   for (const Triangle& t : box(1, 1, 1, {0.5, 0.5, 0.5})) crossing.push_back(t);
   refused(ascii(crossing, "crossing.stl"), "cross each other");
+  // A box inside a box, faced alike, and two boxes side by side: one cavity is a container.
+  std::vector<Triangle> nested = box(1, 1, 1);
+  for (const Triangle& t : box(0.5, 0.5, 0.5, {0.25, 0.25, 0.25})) nested.push_back(t);
+  refused(ascii(nested, "nested.stl"), "its triangles form 2 separate closed surfaces (of 12, 12");
+  std::vector<Triangle> apart = box(1, 1, 1);
+  for (const Triangle& t : box(1, 1, 1, {3, 0, 0})) apart.push_back(t);
+  refused(binary(apart, "apart.stl"), "2 separate closed surfaces");
   std::ofstream(scratch("empty.stl"));
   refused(scratch("empty.stl").string(), "empty (0 bytes)");
   std::ofstream(scratch("none.stl")) << "solid none\nendsolid none\n";

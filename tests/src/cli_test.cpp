@@ -110,9 +110,12 @@ TEST_CASE("mesh containers: check reports the cavity, bad meshes exit 1 naming t
   std::swap(flipped[4][1], flipped[4][2]);
   std::vector<Triangle> nan = pdsim::stl_files::box(30, 30, 30);
   nan[0][0].x = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Triangle> nested = pdsim::stl_files::box(30, 30, 30);
+  for (const Triangle& t : pdsim::stl_files::box(10, 10, 10, {10, 10, 10})) nested.push_back(t);
   std::ofstream(scratch("empty.stl"));
   const std::pair<std::string, std::string> bad[] = {
       {ascii(open, "open.stl"), "not closed"},
+      {ascii(nested, "nested.stl"), "2 separate closed surfaces"},
       {ascii(flipped, "flipped.stl"), "not consistently oriented"},
       {binary(nan, "nan.stl"), "not a number"},
       {scratch("empty.stl").string(), "empty (0 bytes)"}};

@@ -24,7 +24,8 @@ inline std::vector<std::int32_t> contact_counts(const std::vector<Vec3>& centre,
   // each pair tested once, from its lower sorted index.
   const double r_max = *std::max_element(radius.begin(), radius.end());
   const Orientation axes{container.axis_x, container.axis_y, container.axis_z};
-  const Grid grid = grid_around(container.position, world_half_size(g.half_size, axes), 2 * r_max);
+  const Grid grid = grid_around(container.position, world_half_size(g.half_size, axes), 2 * r_max,
+                                grid_cells_for(centre.size()));
   const CellOrder sorted =
       sort_by_cell(grid, centre.size(), [&](std::size_t i) { return centre[i]; });
   const std::vector<std::int32_t>& order = sorted.order;

@@ -401,9 +401,9 @@ class EngineCore : public DemEngine {
 
   // The grid for a rebuild around the container.
   Grid rebuild_grid(const ContainerKinematics& container) const {
-    return grid_around(container.position,
-                       world_half_size(config_.geometry.half_size, config_.orientation),
-                       2 * sizes_.r_max + sizes_.skin);
+    return grid_around(
+        container.position, world_half_size(config_.geometry.half_size, config_.orientation),
+        2 * sizes_.r_max + sizes_.skin, grid_cells_for(static_cast<std::size_t>(count_)));
   }
 
   // A neighbour build over `sorted` (the state sorted by cell, grid_ its grid) into the lists'

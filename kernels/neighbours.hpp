@@ -84,14 +84,29 @@ inline bool lists_expired(double& travel, double speed_sq, double dt, double ski
   return travel > 0.5 * skin;
 }
 
-// Grid around the container at `centre`, one cell of margin on every side.
-inline Grid grid_around(Vec3 centre, Vec3 half_size, double cell) {
+// The most cells a grid of `particles` spans: 8 a particle, and at least 2^20 (a few MiB).
+inline double grid_cells_for(std::size_t particles) {
+  return std::max(double(1 << 20), 8.0 * double(particles));
+}
+
+// Grid around the container at `centre`, one cell of margin on every side, its cells `reach`
+// wide, or wider where that would make more than `max_cells` (grid_cells_for()): a container
+// far wider than its particles (a 1 m box of 0.5 mm spheres, 5e9 cells) gets wide cells, not
+// gigabytes of empty ones. Partners lie in adjacent cells at any width >= reach, so only the
+// cost of a build changes; a grid within the bound is the plain one.
+inline Grid grid_around(Vec3 centre, Vec3 half_size, double reach, double max_cells) {
   Grid g;
+  double cell = reach;
+  for (;;) {
+    g.nx = static_cast<int>(ceil(2 * (half_size.x + cell) / cell));
+    g.ny = static_cast<int>(ceil(2 * (half_size.y + cell) / cell));
+    g.nz = static_cast<int>(ceil(2 * (half_size.z + cell) / cell));
+    const double cells = double(g.nx) * g.ny * g.nz;
+    if (cells <= max_cells) break;
+    cell *= 1.01 * cbrt(cells / max_cells);
+  }
   g.origin = centre - half_size - Vec3{cell, cell, cell};
   g.cell_size = cell;
-  g.nx = static_cast<int>(ceil(2 * (half_size.x + cell) / cell));
-  g.ny = static_cast<int>(ceil(2 * (half_size.y + cell) / cell));
-  g.nz = static_cast<int>(ceil(2 * (half_size.z + cell) / cell));
   return g;
 }
 

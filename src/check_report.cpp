@@ -105,6 +105,9 @@ std::string check_report(const Deck& deck, const Scene& scene) {
     s << "memory: at most about " << number(memory_estimate_mib(deck, scene, scene.threads), 3)
       << " MiB (" << side_by_side << " run" << (side_by_side > 1 ? "s" : "")
       << " side by side, a core each; `pdsim run --threads N` sets how many)\n";
+    if (const std::string short_of = memory_shortfall(deck, scene, scene.threads);
+        !short_of.empty())
+      s << "warning: " << short_of << "\n";
   }
   return s.str();
 }

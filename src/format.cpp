@@ -1,6 +1,7 @@
 #include "src/format.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <sstream>
 
 namespace pdsim {
@@ -15,8 +16,14 @@ std::string number(double v, int precision) {
 std::string amplitude_text(double size, double half_width, bool prescribed) {
   std::ostringstream s;
   s.precision(4);
-  s << (prescribed ? "force " : "") << size * (prescribed ? 1.0 : 1e3)
-    << (prescribed ? " N" : " mm") << " +- " << 100 * half_width / std::max(size, 1e-300) << " %";
+  const double unit = prescribed ? 1.0 : 1e3;
+  s << (prescribed ? "force " : "") << size * unit << (prescribed ? " N" : " mm");
+  if (std::isnan(half_width))
+    s << " (no interval)";
+  else if (size > 0)
+    s << " +- " << 100 * half_width / size << " %";
+  else  // no relative width of nothing (a bed that never touched its walls)
+    s << " +- " << half_width * unit << (prescribed ? " N" : " mm");
   return s.str();
 }
 

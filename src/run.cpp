@@ -2,12 +2,16 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <limits>
 #include <thread>
 
 #include "io/xdmf.hpp"
 #include "src/driver.hpp"
+#include "src/format.hpp"
 #include "src/frequency_run.hpp"
 #include "src/identity.hpp"
 #include "src/interrupt.hpp"
@@ -99,16 +103,38 @@ double simulated_time_bound(const Deck& deck) {
 double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads) {
   double particles = 0;
   for (const DamperScene& d : scene.dampers) particles += double(d.engine.particles.size());
-  // Measured: a run of 20 particles peaks at 28 MiB, `pdsim bench` of 100,000 at 115 MiB
-  // (1 KiB a particle); both doubled for the records a long run keeps, and at least 256 MiB.
+  // Measured (peak resident size, `/usr/bin/time -v`): a fill of 100,000 and of 300,000 spheres
+  // peaks at 4.7 KiB a sphere (its engine, its kept bed and a copy while it is restored), each
+  // further fill adds 1.9 KiB (its kept bed); 1,000,000 spheres in two fills at 6.4 KiB, side by
+  // side or not (validation/results/memory.md). An engine for each run side by side, and a
+  // kept bed for every fill a point may grow to.
+  const int engines = runs_side_by_side(deck, threads, 0);
+  const int beds = std::max(engines, deck.excitation.settle.max_realisations);
   double mib =
-      std::max(256.0, 64.0 + 2.0 * particles / 1024.0 * runs_side_by_side(deck, threads, 0));
+      std::max(256.0, 64.0 + particles / 1024.0 * (5.0 * engines + 2.0 * (beds - engines)));
   // Particle snapshots are held until the file is written: 11 numbers a particle each.
   if (deck.output.particles_every > 0)
     mib += simulated_time_bound(deck) / deck.output.particles_every * particles * 88.0 / (1 << 20);
   // A CUDA context holds a few hundred MiB of host memory (allowed for, not measured here).
   if (scene.backend == Backend::cuda) mib += 1024.0;
   return mib;
+}
+
+std::string memory_shortfall(const Deck& deck, const Scene& scene, int threads) {
+  std::ifstream info("/proc/meminfo");
+  double available_kib = 0;
+  for (std::string key; info >> key;) {
+    if (key == "MemAvailable:") {
+      info >> available_kib;
+      break;
+    }
+    info.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
+  }
+  const double need = memory_estimate_mib(deck, scene, threads), have = available_kib / 1024;
+  if (!(have > 0) || need <= have) return "";
+  return "the run may need up to " + number(need, 3) + " MiB, and " + number(have, 3) +
+         " MiB are available now: expect swapping or an out-of-memory kill; fewer particles or "
+         "fills (settle.max_realisations) need less";
 }
 
 Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
@@ -176,6 +202,9 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   }
   const Scene scene = build_scene(deck, options.threads, options.backend);
   if (!scene.warning.empty()) std::cerr << "warning: " << scene.warning << "\n";
+  if (const std::string short_of = memory_shortfall(deck, scene, options.threads);
+      !short_of.empty())
+    std::cerr << "warning: " << short_of << "\n";
   Plan plan = plan_run(deck, scene, options.threads, options.jobs, options.backend);
   Driver driver(deck_record(deck), std::move(plan.first), plan.make_scene, plan.jobs, options.quiet,
                 path + ".blowup.csv");

@@ -42,6 +42,9 @@ int runs_side_by_side(const Deck& deck, int threads, int jobs);
 double simulated_time_bound(const Deck& deck);
 // Memory a run of the deck needs on `threads` threads, MiB (generous: for a scheduler's request).
 double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads);
+// "" when this machine has that memory available now (/proc/meminfo), else a warning that says
+// how much the run may need and how much there is.
+std::string memory_shortfall(const Deck& deck, const Scene& scene, int threads);
 
 // Why `saved` (a file an earlier run of `deck` wrote: a checkpoint, a map's run) cannot be
 // continued or kept by `deck` and its `scene` (none: the keys alone) now, naming each changed

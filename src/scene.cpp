@@ -122,7 +122,11 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
                          " (random placement jams near 0.38); use fill = \"lattice\", fewer "
                          "particles or a larger container");
   std::mt19937_64 gen(damper.particles.seed);
-  const double cell = 2 * r_max;
+  // Cells at least 2 r_max wide hold every overlapping partner in the adjacent ones, whatever
+  // their width (the same centres come out); about one a particle at most, so that a container
+  // far wider than its particles (a 1 m box of 0.5 mm spheres) needs no more cells than spheres.
+  const double cell = std::max(2 * r_max, std::cbrt(8 * g.half_size.x * g.half_size.y *
+                                                    g.half_size.z / static_cast<double>(n)));
   const int nx = std::max(1, static_cast<int>(std::ceil(2 * g.half_size.x / cell)));
   const int ny = std::max(1, static_cast<int>(std::ceil(2 * g.half_size.y / cell)));
   const int nz = std::max(1, static_cast<int>(std::ceil(2 * g.half_size.z / cell)));

@@ -52,7 +52,8 @@ struct Cloud {
   }
 };
 
-Cloud sorted_cloud(int count, double half, double r_max, double skin) {
+// `max_cells`: the grid's bound (grid_around()), 0 for the engines' (grid_cells_for()).
+Cloud sorted_cloud(int count, double half, double r_max, double skin, double max_cells = 0) {
   std::uint64_t seed = 2024;
   auto uniform = [&seed] {  // a fixed linear congruential sequence in [0, 1)
     seed = seed * 6364136223846793005ull + 1442695040888963407ull;
@@ -66,7 +67,8 @@ Cloud sorted_cloud(int count, double half, double r_max, double skin) {
   }
   Cloud c;
   c.skin = skin;
-  c.grid = grid_around({0, 0, 0}, {half, half, half}, 2 * r_max + skin);
+  c.grid = grid_around({0, 0, 0}, {half, half, half}, 2 * r_max + skin,
+                       max_cells > 0 ? max_cells : grid_cells_for(p.size()));
   const int cells = c.grid.nx * c.grid.ny * c.grid.nz;
   std::vector<std::int32_t> order(p.size());
   std::iota(order.begin(), order.end(), 0);
@@ -88,46 +90,58 @@ Cloud sorted_cloud(int count, double half, double r_max, double skin) {
   return c;
 }
 
+// The grid as the engines size it (9 cells a side), and one capped at 27 cells, whose cells
+// are then wider than the reach (a container far wider than its particles): the same pairs.
 TEST_CASE("forward lists hold each close pair once, and reverse lists point back at its slot") {
-  constexpr int kCount = 400, kMax = 32;
-  const double r_max = 0.0025, skin = 0.3 * r_max;
-  Cloud c = sorted_cloud(kCount, 0.02, r_max, skin);
-  c.max = kMax;
-  const NeighbourBuildArgs b = c.args();
-  const std::vector<std::int32_t>&neighbours = c.neighbours, &count = c.count, &partner = c.partner,
-        &reverse = c.reverse, &reverse_count = c.reverse_count;
-  for (int i = 0; i < kCount; ++i) REQUIRE(build_neighbours_of(i, b));
-  for (int i = 0; i < kCount; ++i) REQUIRE(build_reverse_of(i, b));
+  for (const double max_cells : {0.0, 27.0}) {
+    CAPTURE(max_cells);
+    constexpr int kCount = 400, kMax = 32;
+    const double r_max = 0.0025, skin = 0.3 * r_max;
+    Cloud c = sorted_cloud(kCount, 0.02, r_max, skin, max_cells);
+    if (max_cells > 0) {
+      CHECK(c.grid.nx * c.grid.ny * c.grid.nz <= max_cells);
+      CHECK(c.grid.cell_size > 2 * (2 * r_max + skin));
+    } else {
+      CHECK(c.grid.cell_size == 2 * r_max + skin);
+    }
+    c.max = kMax;
+    const NeighbourBuildArgs b = c.args();
+    const std::vector<std::int32_t>&neighbours = c.neighbours, &count = c.count,
+          &partner = c.partner, &reverse = c.reverse, &reverse_count = c.reverse_count;
+    for (int i = 0; i < kCount; ++i) REQUIRE(build_neighbours_of(i, b));
+    for (int i = 0; i < kCount; ++i) REQUIRE(build_reverse_of(i, b));
 
-  // Brute force over all pairs, with distances from hypot().
-  int pairs = 0;
-  for (int i = 0; i < kCount; ++i) {
-    const std::int32_t* list = neighbours.data() + i * kMax;
+    // Brute force over all pairs, with distances from hypot().
+    int pairs = 0;
+    for (int i = 0; i < kCount; ++i) {
+      const std::int32_t* list = neighbours.data() + i * kMax;
+      for (int j = 0; j < kCount; ++j) {
+        if (j == i) continue;
+        const double d = std::hypot(c.x[i] - c.x[j], c.y[i] - c.y[j], c.z[i] - c.z[j]);
+        const bool close = d < c.radius[i] + c.radius[j] + skin;
+        const auto listed = std::count(list, list + count[i], j);
+        CHECK(listed == (close && j > i ? 1 : 0));
+        pairs += close && j > i;
+      }
+      for (int k = count[i]; k % kSlotGroup != 0; ++k) CHECK(list[k] == i);  // padding
+      for (int k = 0; k < count[i]; ++k) CHECK(partner[i * kMax + k] == c.id[list[k]]);
+    }
+    CHECK(pairs > kCount);  // dense enough to mean something
+
+    // Every forward slot appears in its partner's reverse list, once, and nothing else does.
+    int reverse_entries = 0;
     for (int j = 0; j < kCount; ++j) {
-      if (j == i) continue;
-      const double d = std::hypot(c.x[i] - c.x[j], c.y[i] - c.y[j], c.z[i] - c.z[j]);
-      const bool close = d < c.radius[i] + c.radius[j] + skin;
-      const auto listed = std::count(list, list + count[i], j);
-      CHECK(listed == (close && j > i ? 1 : 0));
-      pairs += close && j > i;
+      for (int r = 0; r < reverse_count[j]; ++r) {
+        const int owner = entry_owner(reverse[j * kMax + r]),
+                  k = entry_place(reverse[j * kMax + r]);
+        CHECK(owner < j);
+        CHECK(k < count[owner]);
+        CHECK(neighbours[owner * kMax + k] == j);
+      }
+      reverse_entries += reverse_count[j];
     }
-    for (int k = count[i]; k % kSlotGroup != 0; ++k) CHECK(list[k] == i);  // padding
-    for (int k = 0; k < count[i]; ++k) CHECK(partner[i * kMax + k] == c.id[list[k]]);
+    CHECK(reverse_entries == pairs);
   }
-  CHECK(pairs > kCount);  // dense enough to mean something
-
-  // Every forward slot appears in its partner's reverse list, once, and nothing else does.
-  int reverse_entries = 0;
-  for (int j = 0; j < kCount; ++j) {
-    for (int r = 0; r < reverse_count[j]; ++r) {
-      const int owner = entry_owner(reverse[j * kMax + r]), k = entry_place(reverse[j * kMax + r]);
-      CHECK(owner < j);
-      CHECK(k < count[owner]);
-      CHECK(neighbours[owner * kMax + k] == j);
-    }
-    reverse_entries += reverse_count[j];
-  }
-  CHECK(reverse_entries == pairs);
 }
 
 TEST_CASE("lists counted first and written compactly equal the fixed-stride lists") {

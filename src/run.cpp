@@ -73,12 +73,17 @@ int total_threads(const Deck& deck, int threads) {
   return threads > 0 ? threads : deck.solver.threads > 0 ? deck.solver.threads : cores;
 }
 
-Plan plan_run(const Deck& deck, const Scene& scene, int threads, int jobs,
-              std::optional<Backend> backend) {
+Plan plan_run(const Deck& deck, const Scene& scene, int threads, int jobs) {
   const int tasks = side_by_side_tasks(deck);
   const int side_by_side = runs_side_by_side(deck, threads, jobs);
   const int each = tasks > 1 ? std::max(1, total_threads(deck, threads) / side_by_side) : threads;
-  Scene first = each == threads ? scene : build_scene(deck, each, backend);
+  // The same scene on fewer threads: not built again (a fill of a million spheres takes
+  // seconds, and the CUDA probe more).
+  Scene first = scene;
+  if (each != threads) {
+    first.threads = each;
+    for (DamperScene& d : first.dampers) d.engine.threads = each;
+  }
   auto make = [base = first](int r) { return scene_of_fill(base, r); };
   return {std::move(first), make, side_by_side};
 }
@@ -138,7 +143,7 @@ std::string memory_shortfall(const Deck& deck, const Scene& scene, int threads) 
 }
 
 Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
-  Plan plan = plan_run(deck, scene, scene.threads, jobs, std::nullopt);
+  Plan plan = plan_run(deck, scene, scene.threads, jobs);
   Driver driver(deck_record(deck), std::move(plan.first), plan.make_scene, plan.jobs, quiet, "");
   return driver.run({}, 0);
 }
@@ -205,7 +210,7 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   if (const std::string short_of = memory_shortfall(deck, scene, options.threads);
       !short_of.empty())
     std::cerr << "warning: " << short_of << "\n";
-  Plan plan = plan_run(deck, scene, options.threads, options.jobs, options.backend);
+  Plan plan = plan_run(deck, scene, options.threads, options.jobs);
   Driver driver(deck_record(deck), std::move(plan.first), plan.make_scene, plan.jobs, options.quiet,
                 path + ".blowup.csv");
   if (options.resume) {

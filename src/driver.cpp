@@ -106,7 +106,7 @@ class Driver::Impl {
   Results run(const std::function<void(const Results&)>& checkpoint, int stop_after) {
     started_ = Clock::now();
     simulated_start_ = simulated_;
-    g_stop_runs = g_interrupted != 0;  // an interrupt before the start stops it at once
+    clear_stop();  // an interrupt before the start stops it at once
     checkpoint_ = checkpoint;
     stop_after_ = stop_after;
     run_tasks();
@@ -185,13 +185,13 @@ class Driver::Impl {
     std::exception_ptr failure;
     std::mutex failure_mutex;
     auto worker = [&] {
-      for (std::size_t k; (k = next++) < count && !g_stop_runs;) {
+      for (std::size_t k; (k = next++) < count && !stop_requested();) {
         try {
           work(k);
         } catch (...) {
           std::lock_guard<std::mutex> lock(failure_mutex);
           if (!failure && !stopped_) failure = std::current_exception();
-          g_stop_runs = true;
+          request_stop();
         }
       }
     };
@@ -202,7 +202,7 @@ class Driver::Impl {
     for (auto& t : threads) t.join();
     if (failure) std::rethrow_exception(failure);
     // A stop that came between tasks (SIGINT) leaves work undone without any task failing.
-    if (g_stop_runs && !stopped_) throw Interrupted();
+    if (stop_requested() && !stopped_) throw Interrupted();
   }
 
   // Dumps the particles of a failed run beside the output and says where.
@@ -210,7 +210,7 @@ class Driver::Impl {
   // frequencies) for failed(): a run that blows up in its only segment would otherwise leave
   // nothing but the particle dump.
   [[noreturn]] void fail(const FrequencyRun& run, std::size_t r, const SimulationError& e) {
-    if (g_interrupted || dump_path_.empty() || dynamic_cast<const Interrupted*>(&e)) throw;
+    if (interrupted() || dump_path_.empty() || dynamic_cast<const Interrupted*>(&e)) throw;
     run.system().dump(dump_path_);
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -366,7 +366,7 @@ class Driver::Impl {
     auto worker = [&] {
       std::unique_lock<std::mutex> held(mutex_);
       for (;;) {
-        if (g_stop_runs) return;
+        if (stop_requested()) return;
         // The fill furthest behind first: points then finish about in order.
         std::size_t pick = beds_.size();
         bool running = false, paused = false;
@@ -385,7 +385,7 @@ class Driver::Impl {
           if (!running && paused && !failure) {
             failure =
                 std::make_exception_ptr(SimulationError("fills wait for each other at a look"));
-            g_stop_runs = true;
+            request_stop();
           }
           if (!running) return;  // nothing left to run, and nothing running could add any
           changed.wait(held);
@@ -398,7 +398,7 @@ class Driver::Impl {
         } catch (...) {
           held.lock();
           if (!failure && !stopped_) failure = std::current_exception();
-          g_stop_runs = true;
+          request_stop();
           busy_[pick] = 0;
           changed.notify_all();
           return;
@@ -415,7 +415,7 @@ class Driver::Impl {
     worker();
     for (auto& t : threads) t.join();
     if (failure) std::rethrow_exception(failure);
-    if (g_stop_runs && !stopped_) throw Interrupted();
+    if (stop_requested() && !stopped_) throw Interrupted();
   }
 
   // The simulated time (s) that the points still planned are expected to take (mutex_ held),
@@ -739,7 +739,7 @@ class Driver::Impl {
     checkpoint_(snapshot);
     if (stop_after_ > 0 && --stop_after_ == 0) {
       stopped_ = true;
-      g_stop_runs = true;
+      request_stop();
     }
   }
 

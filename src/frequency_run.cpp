@@ -4,10 +4,9 @@
 #include <limits>
 
 #include "kernels/contact_count.hpp"
+#include "src/interrupt.hpp"
 
 namespace pdsim {
-
-std::atomic<bool> g_stop_runs{false};
 
 namespace {
 // The predicted start's refinement: rounds of a few periods each (see begin_frequency).
@@ -61,7 +60,7 @@ BedReport FrequencyRun::settle_bed() {
   const long long most = std::llround(std::ceil(scene_.bed.max_time / dt));
   long long calm = 0, steps = 0;
   while (steps < most && calm < hold) {
-    if (g_stop_runs) throw Interrupted();
+    if (stop_requested()) throw Interrupted();
     report.speed = system_.settle_step(dt);
     calm = report.speed <= scene_.bed.speed ? calm + 1 : 0;
     ++steps;
@@ -129,7 +128,7 @@ void FrequencyRun::snapshot() {
 }
 
 void FrequencyRun::step() {
-  if (g_stop_runs) throw Interrupted();
+  if (stop_requested()) throw Interrupted();
   if (particles_ && system_.time() + 1e-12 >= next_snapshot_) snapshot();
   // A sample is the state at the start of the step, with the tallies up to it.
   const bool sample = system_.time() + 1e-12 >= next_sample_;

@@ -32,9 +32,6 @@ struct BedReport {
   double speed = 0;   // m/s, largest particle speed at the end
 };
 
-// Set from outside to stop every run at its next step (SIGINT, or a failed sibling run).
-extern std::atomic<bool> g_stop_runs;
-
 class FrequencyRun {
  public:
   // `progress(frequency, fraction of this frequency done)` is called after every period.

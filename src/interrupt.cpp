@@ -1,24 +1,47 @@
 #include "src/interrupt.hpp"
 
-#include "src/frequency_run.hpp"
+#include <atomic>
 
 namespace pdsim {
 
-volatile std::sig_atomic_t g_interrupted = 0;
-
 namespace {
+
+volatile std::sig_atomic_t g_signal = 0;
+std::atomic<bool> g_stop{false};  // lock-free, so the handler may set it
+static_assert(std::atomic<bool>::is_always_lock_free, "a signal handler sets it");
+
 extern "C" void on_interrupt(int) {
-  g_interrupted = 1;
-  g_stop_runs = true;
+  g_signal = 1;
+  g_stop = true;
 }
+
 }  // namespace
 
-InterruptScope::InterruptScope()
-    : previous_int(std::signal(SIGINT, on_interrupt)),
-      previous_term(std::signal(SIGTERM, on_interrupt)) {}
+bool interrupted() {
+  return g_signal != 0;
+}
+bool stop_requested() {
+  return g_stop;
+}
+void request_stop() {
+  g_stop = true;
+}
+void clear_stop() {
+  g_stop = g_signal != 0;
+}
+
+InterruptScope::InterruptScope(bool restart) {
+  struct sigaction stop = {};
+  stop.sa_handler = on_interrupt;
+  stop.sa_flags = restart ? SA_RESTART : 0;
+  sigemptyset(&stop.sa_mask);
+  sigaction(SIGINT, &stop, &previous_int_);
+  sigaction(SIGTERM, &stop, &previous_term_);
+}
+
 InterruptScope::~InterruptScope() {
-  std::signal(SIGINT, previous_int);
-  std::signal(SIGTERM, previous_term);
+  sigaction(SIGINT, &previous_int_, nullptr);
+  sigaction(SIGTERM, &previous_term_, nullptr);
 }
 
 }  // namespace pdsim

@@ -239,9 +239,9 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
       throw SimulationError(std::string(e.what()) +
                             "\nwhat was computed up to the failure: " + kept);
     }
-    if (g_interrupted && !fs::exists(partial))
+    if (interrupted() && !fs::exists(partial))
       throw Interrupted("interrupted before the first frequency finished; nothing kept");
-    if (g_interrupted)
+    if (interrupted())
       throw Interrupted(std::string("interrupted; finished frequencies are in ") + partial +
                         ", continue with --resume");
     throw;

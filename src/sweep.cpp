@@ -11,6 +11,7 @@
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <optional>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -24,6 +25,7 @@
 #include "io/excitation.hpp"
 #include "io/results.hpp"
 #include "src/format.hpp"
+#include "src/interrupt.hpp"
 #include "src/run.hpp"
 #include "src/scene.hpp"
 #include "src/slurm.hpp"
@@ -34,11 +36,6 @@ namespace pdsim {
 namespace {
 
 namespace fs = std::filesystem;
-
-volatile std::sig_atomic_t g_stop = 0;
-extern "C" void on_sweep_interrupt(int) {
-  g_stop = 1;
-}
 
 struct Point {
   int index = 0;
@@ -454,17 +451,12 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
   std::fflush(stdout);
 
   // Without SA_RESTART, so that a signal interrupts waitpid() and is passed on to the points.
-  g_stop = 0;
-  struct sigaction stop = {}, previous_int = {}, previous_term = {};
-  stop.sa_handler = on_sweep_interrupt;
-  sigemptyset(&stop.sa_mask);
-  sigaction(SIGINT, &stop, &previous_int);
-  sigaction(SIGTERM, &stop, &previous_term);
+  std::optional<InterruptScope> interrupts(std::in_place, false);
   std::size_t next = 0;
   int running = 0;
   bool forwarded = false;
   for (;;) {
-    while (!g_stop && running < jobs && next < points.size()) {
+    while (!interrupted() && running < jobs && next < points.size()) {
       Point& p = points[next++];
       if (!mine(p.index)) continue;
       if (p.kept) {
@@ -476,7 +468,7 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
       ++running;
     }
     if (running == 0) break;
-    if (g_stop && !forwarded) {  // let every running point write its checkpoint
+    if (interrupted() && !forwarded) {  // let every running point write its checkpoint
       for (const Point& p : points)
         if (p.pid > 0 && p.code < 0) kill(p.pid, SIGINT);
       forwarded = true;
@@ -505,8 +497,7 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
                 outcome.c_str());
     std::fflush(stdout);
   }
-  sigaction(SIGINT, &previous_int, nullptr);
-  sigaction(SIGTERM, &previous_term, nullptr);
+  interrupts.reset();
 
   const std::string summary = (fs::path(folder) / "summary.csv").string();
   if (ranks > 1) {
@@ -535,14 +526,14 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
         }
       std::printf("%d of %d points finished; summary in %s\n", finished, count, summary.c_str());
     }
-    if (g_stop) return 130;
+    if (interrupted()) return 130;
     return done < own ? 2 : 0;
   }
   write_summary(deck, points, summary);
   int finished = 0;
   for (const Point& p : points) finished += p.kept || p.code == 0;
   std::printf("%d of %d points finished; summary in %s\n", finished, count, summary.c_str());
-  if (g_stop) {
+  if (interrupted()) {
     std::printf("interrupted: continue with `pdsim sweep %s --resume`\n", deck.path.c_str());
     return 130;
   }

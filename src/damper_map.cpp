@@ -51,8 +51,19 @@ Deck prescribed_run(const Deck& deck, const Vec3& axis, const std::vector<double
   d.output.file = file;
   d.output.particles_every = 0;
   d.output.energy = false;
-  // The runs share one settled bed (its identity checks that it is theirs).
-  if (d.bed.file.empty()) d.bed.file = (fs::path(file).parent_path() / "bed.h5").string();
+  // The runs share one settled bed (its identity checks that it is theirs). A rigid contact's
+  // step follows each run's motion (src/scene.cpp), and its bed with it: each run keeps its own,
+  // named for the run ("bed_m001.h5", or the deck's bed.file with "_m001" before its extension).
+  const fs::path run(file);
+  if (d.bed.file.empty())
+    d.bed.file = (run.parent_path() / (deck.contact.nonsmooth ? "bed_" + run.stem().string() + ".h5"
+                                                              : std::string("bed.h5")))
+                     .string();
+  else if (deck.contact.nonsmooth)
+    d.bed.file = (fs::path(d.bed.file).parent_path() /
+                  (fs::path(d.bed.file).stem().string() + "_" + run.stem().string() +
+                   fs::path(d.bed.file).extension().string()))
+                     .string();
   std::ostringstream note;
   note.precision(17);
   note << "\n# pdsim map: " << label << ": prescribed motion along [" << axis.x << ", " << axis.y

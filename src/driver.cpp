@@ -8,9 +8,8 @@
 #include <mutex>
 #include <sstream>
 #include <thread>
+#include <utility>
 
-#include "pdsim_version.hpp"
-#include "src/bed_file.hpp"
 #include "src/format.hpp"
 #include "src/frequency_run.hpp"
 #include "src/identity.hpp"
@@ -23,9 +22,10 @@ namespace pdsim {
 
 class Driver::Impl {
  public:
-  Impl(DeckRecord deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
-       std::string dump_path)
+  Impl(DeckRecord deck, std::optional<Results> kept_beds, Scene first, SceneMaker make_scene,
+       int jobs, bool quiet, std::string dump_path)
       : deck_(std::move(deck)),
+        kept_beds_(std::move(kept_beds)),
         make_scene_(std::move(make_scene)),
         jobs_(jobs),
         quiet_(quiet),
@@ -253,7 +253,7 @@ class Driver::Impl {
       if (beds_[r].empty()) missing.push_back(r);
     if (missing.empty()) return;
     const std::string& file = scenes_[0]->bed.file;
-    if (std::optional<Results> saved = read_bed_file(*scenes_[0], deck_.bed_file_at)) {
+    if (std::optional<Results> saved = std::exchange(kept_beds_, std::nullopt)) {
       const auto held = static_cast<std::size_t>(saved->meta_numbers["realisations"]);
       for (std::size_t r = 0; r < std::min(held, beds_.size()); ++r)
         if (beds_[r].empty()) {
@@ -783,70 +783,28 @@ class Driver::Impl {
   }
 
   void provenance(Results& r) const {
-    auto& t = r.meta_text;
-    auto& n = r.meta_numbers;
-    t["deck"] = deck_.text;
-    t["deck_path"] = deck_.path;
-    t["identity"] = identity_text(scene_identity(*scenes_[0]));
-    if (!deck_.sweep_point.empty()) t["sweep_point"] = deck_.sweep_point;
-    t["title"] = deck_.title;
-    t["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
-    t["backend"] = backend_.empty() ? "none (no particles)" : backend_;
-    t["kernel_variant"] = variant_.empty() ? "none" : variant_;
-    const char* schemes[] = {"loose", "interleaved", "tight"};
-    const Scene& scene = *scenes_[0];
-    t["coupling"] = schemes[static_cast<int>(scene.coupling.scheme)];
-    t["dt_basis"] = scene.dt_basis;
-    if (!scene.warning.empty()) t["warning"] = scene.warning;
-    if (runs_points(excitation())) t["start"] = start_name(excitation().start);
-    const BedReport& bed = reports_[0];
-    t["bed"] = !bed.ran         ? "not settled (bed.settle = false, or no gravity or particles)"
-               : bed_from_file_ ? "read from " + scene.bed.file
-               : bed.settled
-                   ? "settled in " + number(bed.time_s) + " s"
-                   : "NOT settled within bed.max_time = " + number(scene.bed.max_time) + " s";
-    n["bed_settled"] = bed.settled ? 1 : 0;
-    n["bed_settle_time_s"] = bed.time_s;
-    n["bed_speed"] = bed.speed;
-    n["realisations"] = double(fills_min_);
-    n["max_realisations"] = double(fills_max_);
-    std::size_t used = 0;
+    RunFacts f;
+    f.scene = scenes_[0].get();
+    f.backend = backend_;
+    f.variant = variant_;
+    f.bed = reports_[0];
+    f.bed_from_file = bed_from_file_;
+    f.fills_min = fills_min_;
+    f.fills_max = fills_max_;
     for (std::size_t k = 0; k < points_.size(); ++k)
-      for (const auto& p : points_[k]) used = p ? std::max(used, k + 1) : used;
-    n["fills_used"] = double(used);
-    n["jobs"] = jobs_;
-    n["threads"] = threads_;
-    n["dt"] = scene.dt;
-    n["dt_limit"] = scene.dt_limit;
-    n["wall_time_s"] = wall_;
-    n["particle_steps"] = double(particle_steps_);
-    int particles = 0;
-    for (const DamperScene& d : scene.dampers)
-      particles += static_cast<int>(d.engine.particles.size());
-    n["particles"] = particles;
-    n["simulated_time_s"] = simulated_;
-    if (!scene.dampers.empty() && scene.dampers[0].engine.nonsmooth) {
-      // This process's solves (a resumed run's earlier ones are not counted).
-      const SolverTotals& a = solver_start_;
-      const SolverTotals b = nonsmooth_totals();
-      const double steps = static_cast<double>(b.steps - a.steps);
-      n["solver_iterations_per_step"] =
-          steps > 0 ? static_cast<double>(b.iterations - a.iterations) / steps : 0.0;
-      n["solver_most_iterations"] = b.most;
-      n["solver_steps_at_cap"] = static_cast<double>(b.capped - a.capped);
-      n["solver_worst_residual"] = b.worst_residual;
-      if (b.capped > a.capped) {
-        const std::string capped =
-            number(static_cast<double>(b.capped - a.capped)) + " of " + number(steps) +
-            " steps ended at contact.max_iterations with a residual above contact.tolerance "
-            "(largest " +
-            number(b.worst_residual) + " m/s)";
-        t["warning"] = scene.warning.empty() ? capped : scene.warning + "; " + capped;
-      }
-    }
+      for (const auto& p : points_[k])
+        f.fills_used = p ? std::max(f.fills_used, k + 1) : f.fills_used;
+    f.jobs = jobs_;
+    f.threads = threads_;
+    f.wall_s = wall_;
+    f.simulated_s = simulated_;
+    f.particle_steps = particle_steps_;
+    f.solver_start = solver_start_;
+    write_provenance(r, deck_, f);
   }
 
   const DeckRecord deck_;
+  std::optional<Results> kept_beds_;  // read from bed.file before the run (read_bed_file())
   SceneMaker make_scene_;
   std::vector<std::unique_ptr<Scene>> scenes_;  // one per fill, built when first needed
   std::mutex scene_mutex_;
@@ -891,17 +849,10 @@ class Driver::Impl {
   int threads_ = 1;
 };
 
-DeckRecord deck_record(const Deck& deck) {
-  DeckRecord r{deck.text, deck.path, deck.title, "", deck.where("bed.file")};
-  if (deck.point > 0)
-    r.sweep_point = std::to_string(deck.point) + ": " + deck.sweep.describe(deck.point);
-  return r;
-}
-
-Driver::Driver(DeckRecord deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
-               std::string dump_path)
-    : impl_(std::make_unique<Impl>(std::move(deck), std::move(first), std::move(make_scene), jobs,
-                                   quiet, std::move(dump_path))) {}
+Driver::Driver(DeckRecord deck, std::optional<Results> kept_beds, Scene first,
+               SceneMaker make_scene, int jobs, bool quiet, std::string dump_path)
+    : impl_(std::make_unique<Impl>(std::move(deck), std::move(kept_beds), std::move(first),
+                                   std::move(make_scene), jobs, quiet, std::move(dump_path))) {}
 Driver::~Driver() = default;
 void Driver::resume_from(const Results& partial) {
   impl_->resume_from(partial);

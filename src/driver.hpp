@@ -6,8 +6,10 @@
 #include <memory>
 #include <string>
 
-#include "io/deck.hpp"
+#include <optional>
+
 #include "io/results.hpp"
+#include "src/provenance.hpp"
 #include "src/scene.hpp"
 
 namespace pdsim {
@@ -20,22 +22,14 @@ namespace pdsim {
 // criterion, exactly as a fill carried all the way (its values there join those points). With
 // start = "independent" a task is one point, its fills from their own beds, the tasks side by
 // side. Fills run `jobs` at a time; what a fill computes never depends on that schedule.
-// What a run keeps of its deck, for provenance and the errors of bed.file: the driver reads
-// nothing else of it (the scene holds the rest).
-struct DeckRecord {
-  std::string text, path, title;
-  std::string sweep_point;  // "K: key = value, ..." for a point of a [sweep], else ""
-  SourcePos bed_file_at;    // where bed.file is set
-};
-DeckRecord deck_record(const Deck& deck);
-
 class Driver {
  public:
   using SceneMaker = std::function<Scene(int fill)>;
-  // `first` is fill 0's scene, `make_scene(r)` builds fill r's; `dump_path` receives the
-  // particles of a run that blows up ("" : none).
-  Driver(DeckRecord deck, Scene first, SceneMaker make_scene, int jobs, bool quiet,
-         std::string dump_path);
+  // `first` is fill 0's scene, `make_scene(r)` builds fill r's; `kept_beds` the beds read
+  // from bed.file (read_bed_file()), if any; `dump_path` receives the particles of a run that
+  // blows up ("" : none).
+  Driver(DeckRecord deck, std::optional<Results> kept_beds, Scene first, SceneMaker make_scene,
+         int jobs, bool quiet, std::string dump_path);
   ~Driver();
   // Continues from the checkpoint of an interrupted run (its points, beds and records).
   void resume_from(const Results& partial);

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "io/xdmf.hpp"
+#include "src/bed_file.hpp"
 #include "src/driver.hpp"
 #include "src/format.hpp"
 #include "src/frequency_run.hpp"
@@ -88,6 +89,13 @@ Plan plan_run(const Deck& deck, const Scene& scene, int threads, int jobs) {
   return {std::move(first), make, side_by_side};
 }
 
+DeckRecord deck_record(const Deck& deck) {
+  DeckRecord r{deck.text, deck.path, deck.title, ""};
+  if (deck.point > 0)
+    r.sweep_point = std::to_string(deck.point) + ": " + deck.sweep.describe(deck.point);
+  return r;
+}
+
 }  // namespace
 
 int runs_side_by_side(const Deck& deck, int threads, int jobs) {
@@ -144,7 +152,8 @@ std::string memory_shortfall(const Deck& deck, const Scene& scene, int threads) 
 
 Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
   Plan plan = plan_run(deck, scene, scene.threads, jobs);
-  Driver driver(deck_record(deck), std::move(plan.first), plan.make_scene, plan.jobs, quiet, "");
+  Driver driver(deck_record(deck), read_bed_file(scene, deck.where("bed.file")),
+                std::move(plan.first), plan.make_scene, plan.jobs, quiet, "");
   return driver.run({}, 0);
 }
 
@@ -211,7 +220,8 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
       !short_of.empty())
     std::cerr << "warning: " << short_of << "\n";
   Plan plan = plan_run(deck, scene, options.threads, options.jobs);
-  Driver driver(deck_record(deck), std::move(plan.first), plan.make_scene, plan.jobs, options.quiet,
+  Driver driver(deck_record(deck), read_bed_file(scene, deck.where("bed.file")),
+                std::move(plan.first), plan.make_scene, plan.jobs, options.quiet,
                 path + ".blowup.csv");
   if (options.resume) {
     if (!fs::exists(partial))

@@ -75,16 +75,22 @@ void check_ball(const MapTable& m, double rolling_loss = 1e-3) {
   }
 }
 
+// A quiet map into `file`, one job at a time.
+MapOptions map_into(const fs::path& file) {
+  MapOptions o;
+  o.output = file.string();
+  o.quiet = true;
+  o.jobs = 1;
+  return o;
+}
+
 }  // namespace
 
 TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once it slides") {
   const fs::path dir = fs::temp_directory_path() / ("pdsim_map_" + std::to_string(getpid()));
   fs::create_directories(dir);
   const Deck deck = parse_deck(kBallDeck, "ball.toml");
-  MapOptions options;
-  options.output = (dir / "ball_map.h5").string();
-  options.quiet = true;
-  options.jobs = 1;
+  MapOptions options = map_into(dir / "ball_map.h5");
   const RunReport report = run_map(deck, options);
   const MapTable m = read_results(report.output).map;
   REQUIRE(m.frequency.size() == 4);          // 2 accelerations x 2 frequencies
@@ -159,10 +165,7 @@ TEST_CASE(
     text.erase(text.find(penalty), std::string(penalty).size());
   text.replace(text.find("model = \"linear\""), 16, "model = \"nonsmooth\"");
   const Deck deck = parse_deck(text, "rigid.toml");
-  MapOptions options;
-  options.output = (dir / "rigid_map.h5").string();
-  options.quiet = true;
-  options.jobs = 1;
+  MapOptions options = map_into(dir / "rigid_map.h5");
   const MapTable m = read_results(run_map(deck, options).output).map;
   REQUIRE(m.frequency.size() == 4);
   for (const char* bed : {"bed_m001.h5", "bed_m002.h5", "bed_m003.h5", "bed_m004.h5"})
@@ -183,10 +186,7 @@ TEST_CASE("a map run a grid run at a time and collected is the map run whole") {
   const fs::path dir = fs::temp_directory_path() / ("pdsim_map_runs_" + std::to_string(getpid()));
   fs::create_directories(dir);
   const Deck deck = parse_deck(kBallDeck, "ball.toml");
-  MapOptions whole;
-  whole.output = (dir / "whole_map.h5").string();
-  whole.quiet = true;
-  whole.jobs = 1;
+  MapOptions whole = map_into(dir / "whole_map.h5");
   const MapTable m = read_results(run_map(deck, whole).output).map;
   MapOptions task = whole;
   task.output = (dir / "split_map.h5").string();
@@ -224,10 +224,7 @@ TEST_CASE("a map of one ball stepped up and down: it rolls again on the way down
   fs::create_directories(dir);
   std::string text = kBallDeck;
   text.insert(text.find("accelerations"), "steps = \"both\"\n");
-  MapOptions options;
-  options.output = (dir / "ball_map.h5").string();
-  options.quiet = true;
-  options.jobs = 1;
+  MapOptions options = map_into(dir / "ball_map.h5");
   const MapTable m = read_results(run_map(parse_deck(text, "ball.toml"), options).output).map;
   REQUIRE(m.frequency.size() == 8);  // 2 frequencies x (2 up + 2 down)
   CHECK(m.frequency == std::vector<double>{15, 15, 15, 15, 20, 20, 20, 20});

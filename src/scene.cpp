@@ -225,21 +225,38 @@ double smallest_radius(const ParticleSpec& p) {
   return 0.5 * *std::min_element(p.diameters.begin(), p.diameters.begin() + used);
 }
 
-// A damper's particles for the fill of `seed`: radii, centres in the world, mass and fill
-// fraction (its engine's other settings are the scene's).
-void fill_damper(DamperScene& ds, std::uint64_t seed) {
+// The radii and centres (container frame) of a damper's fill of `seed`; errors name `where`
+// and `key` (the damper's particles table).
+struct Drawn {
+  std::vector<double> radius;
+  std::vector<Vec3> centres;
+};
+Drawn draw_fill(const DamperScene& ds, std::uint64_t seed, const SourcePos& where,
+                const std::string& key) {
   DamperSpec d = ds.spec;
   d.particles.seed = seed;
-  EngineConfig& e = ds.engine;
-  e.radius = particle_radii(d.particles);
-  const double r_max = *std::max_element(e.radius.begin(), e.radius.end());
-  const double smallest_extent = smallest_inner_size(e.shape, e.geometry);
+  Drawn f;
+  f.radius = particle_radii(d.particles);
+  const double r_max = *std::max_element(f.radius.begin(), f.radius.end());
+  const double smallest_extent = smallest_inner_size(ds.engine.shape, ds.engine.geometry);
   if (2 * r_max >= smallest_extent)
-    throw InputError(ds.particles_at, ds.key,
+    throw InputError(where, key,
                      "particle diameter " + number(2 * r_max) +
                          " m does not fit in the container (smallest inner size " +
                          number(smallest_extent) + " m)");
-  const std::vector<Vec3> centres = fill_particles(d, e.radius, ds.particles_at, ds.key);
+  f.centres = fill_particles(d, f.radius, where, key);
+  return f;
+}
+
+// A damper's particles for the fill of `seed`: radii, centres in the world, mass and fill
+// fraction (its engine's other settings are the scene's).
+void fill_damper(DamperScene& ds, std::uint64_t seed, const SourcePos& where,
+                 const std::string& key) {
+  Drawn drawn = draw_fill(ds, seed, where, key);
+  const DamperSpec& d = ds.spec;
+  EngineConfig& e = ds.engine;
+  e.radius = std::move(drawn.radius);
+  const std::vector<Vec3>& centres = drawn.centres;
   double volume = 0;
   const Orientation& o = e.orientation;
   e.particles.clear();
@@ -404,8 +421,8 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     const DamperSpec& d = deck.dampers[k];
     DamperScene ds;
     ds.spec = d;
-    ds.key = "damper[" + std::to_string(k) + "].particles";
-    ds.particles_at = deck.where(ds.key);
+    const std::string key = "damper[" + std::to_string(k) + "].particles";
+    const SourcePos at = deck.where(key);
     EngineConfig& e = ds.engine;
     e.threads = s.threads;
     e.backend = s.backend;
@@ -421,7 +438,21 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     if (deck.gravity && norm(*deck.gravity) > 0) e.gravity = deck.gravity;
     e.contact = params;
     e.recompute = deck.coupling.scheme == CouplingScheme::tight;  // iterates each step
-    fill_damper(ds, d.particles.seed);
+    fill_damper(ds, d.particles.seed, at, key);
+    // Every other fill a run may draw (scene_of_fill), drawn here once: a seed whose random fill
+    // jams, or whose drawn diameters do not fit, is refused by check, not hours into a run.
+    const ExcitationSpec& x = deck.excitation;
+    const int fills =
+        runs_points(x) ? std::max(x.settle.realisations, x.settle.max_realisations) : 1;
+    for (int r = 1; r < fills; ++r) {
+      try {
+        draw_fill(ds, d.particles.seed + static_cast<std::uint64_t>(r), at, key);
+      } catch (const InputError& error) {
+        throw InputError(std::string(error.what()) + " (fill " + std::to_string(r + 1) +
+                         " of the " + std::to_string(fills) + " a point may grow to, seed " +
+                         std::to_string(d.particles.seed + static_cast<std::uint64_t>(r)) + ")");
+      }
+    }
     // dt follows the smallest particle a fill of this design can hold, so that every fill
     // (scene_of_fill) runs at the same step.
     const double r_least = smallest_radius(d.particles);
@@ -503,8 +534,14 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
 
 Scene scene_of_fill(const Scene& first, int fill) {
   Scene s = first;
-  for (DamperScene& d : s.dampers)
-    fill_damper(d, d.spec.particles.seed + static_cast<std::uint64_t>(fill));
+  for (DamperScene& d : s.dampers) {
+    try {  // build_scene() drew every fill a run may ask for: this cannot refuse
+      fill_damper(d, d.spec.particles.seed + static_cast<std::uint64_t>(fill), SourcePos{}, "");
+    } catch (const InputError& error) {
+      throw SimulationError("fill " + std::to_string(fill + 1) +
+                            " could not be drawn: " + error.what());
+    }
+  }
   return s;
 }
 

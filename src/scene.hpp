@@ -21,11 +21,9 @@ struct DamperScene {
   EngineConfig engine;       // dt is filled per run segment by the solver
   double particle_mass = 0;  // kg, total
   double fill_fraction = 0;  // particle volume / container volume
-  // What another fill is drawn from (scene_of_fill): the deck's damper, and where its particles
-  // table is for errors.
+  // What another fill is drawn from (scene_of_fill): the deck's damper (every fill a run may
+  // draw was drawn and checked by build_scene()).
   DamperSpec spec;
-  std::string key;  // "damper[k].particles"
-  SourcePos particles_at;
 };
 
 struct Scene {

@@ -138,6 +138,18 @@ TEST_CASE("a random fill beyond what random placement reaches is refused at once
         std::string::npos);
 }
 
+// Every fill a point may grow to is drawn when the deck is checked: one whose drawn diameter
+// does not fit (fills 1 and 2 fit, fill 3 draws 22.9 mm for a 20 mm box) is refused by check,
+// naming the fill and its seed, where a run found it only when a point asked for that fill.
+TEST_CASE("every fill a point may grow to is drawn and checked before the run") {
+  const std::string ball = "count = 1, diameter_range = [0.004, 0.024], density = 7800.0, seed = 6";
+  const std::string e =
+      tiny_error("count = 20, diameter = 0.004, density = 7800.0, seed = 3", ball);
+  CHECK(e.find("tiny.toml:11:13: 'damper[0].particles': particle diameter 0.0229 m does not fit") !=
+        std::string::npos);
+  CHECK(e.find("(fill 3 of the 4 a point may grow to, seed 8)") != std::string::npos);
+}
+
 TEST_CASE("a deck file larger than 16 MiB is refused without reading it all") {
   const std::string e = [] {
     try {

@@ -428,41 +428,49 @@ DamperSpec read_damper(const Table& t, const StructureSpec& structure) {
                              "a table { shape = \"box\", size }, { shape = \"cylinder\", radius, "
                              "height[, axis] } or { shape = \"mesh\", file[, scale, curvature] }",
                              why);
-  const std::size_t shape = c.need_choice("shape", {"box", "cylinder", "mesh"}, "for a container");
-  if (shape == 2) {
-    c.allow_only({"shape", "file", "scale", "curvature"}, " for shape = \"mesh\"");
-    d.container.shape = WallShape::mesh;
-    const std::string mesh = "for shape = \"mesh\"";
-    if (!c.has("file")) c.missing("file", "an STL file (ASCII or binary)", mesh);
-    std::string file = *c.text("file");
-    if (file.empty()) c.fail("file", "expected an STL file name, got \"\"");
-    const double scale =
-        c.real("scale", "a positive number (metres per file unit)", positive).value_or(1.0);
-    const double curvature =
-        c.real("curvature", "an angle in degrees, above 0 and below 90", [](double v) {
-           return v > 0 && v < 90;
-         }).value_or(kDefaultCurvature);
-    // A relative file is the deck's neighbour.
-    if (std::filesystem::path(file).is_relative())
-      file = (std::filesystem::path(c.pos().file).parent_path() / file).lexically_normal().string();
-    try {
-      d.container.mesh = load_mesh(file, scale, curvature);
-    } catch (const InputError& e) {
-      c.fail("file", e.what());
+  // The shapes as kernels/shapes.hpp lists them; each reads its own keys (a switch the build
+  // holds complete).
+  d.container.shape =
+      static_cast<WallShape>(c.need_choice("shape", names_of<Shapes>(), "for a container"));
+  switch (d.container.shape) {
+    case WallShape::mesh: {
+      c.allow_only({"shape", "file", "scale", "curvature"}, " for shape = \"mesh\"");
+      const std::string mesh = "for shape = \"mesh\"";
+      if (!c.has("file")) c.missing("file", "an STL file (ASCII or binary)", mesh);
+      std::string file = *c.text("file");
+      if (file.empty()) c.fail("file", "expected an STL file name, got \"\"");
+      const double scale =
+          c.real("scale", "a positive number (metres per file unit)", positive).value_or(1.0);
+      const double curvature =
+          c.real("curvature", "an angle in degrees, above 0 and below 90", [](double v) {
+             return v > 0 && v < 90;
+           }).value_or(kDefaultCurvature);
+      // A relative file is the deck's neighbour.
+      if (std::filesystem::path(file).is_relative())
+        file =
+            (std::filesystem::path(c.pos().file).parent_path() / file).lexically_normal().string();
+      try {
+        d.container.mesh = load_mesh(file, scale, curvature);
+      } catch (const InputError& e) {
+        c.fail("file", e.what());
+      }
+      break;
     }
-  } else if (shape == 0) {
-    c.allow_only({"shape", "size"}, " for shape = \"box\"");
-    d.container.shape = WallShape::box;
-    const std::string expected = "3 positive edge lengths [a, b, c] (m)";
-    if (!c.has("size")) c.missing("size", expected, "for shape = \"box\"");
-    d.container.size = *c.vec3("size", expected, positive);
-  } else {
-    c.allow_only({"shape", "radius", "height", "axis"}, " for shape = \"cylinder\"");
-    d.container.shape = WallShape::cylinder;
-    const std::string cylinder = "for shape = \"cylinder\"";
-    d.container.radius = c.need_real("radius", "a positive number (m)", positive, cylinder);
-    d.container.height = c.need_real("height", "a positive number (m)", positive, cylinder);
-    d.container.axis = c.direction("axis").value_or(d.container.axis);
+    case WallShape::box: {
+      c.allow_only({"shape", "size"}, " for shape = \"box\"");
+      const std::string expected = "3 positive edge lengths [a, b, c] (m)";
+      if (!c.has("size")) c.missing("size", expected, "for shape = \"box\"");
+      d.container.size = *c.vec3("size", expected, positive);
+      break;
+    }
+    case WallShape::cylinder: {
+      c.allow_only({"shape", "radius", "height", "axis"}, " for shape = \"cylinder\"");
+      const std::string cylinder = "for shape = \"cylinder\"";
+      d.container.radius = c.need_real("radius", "a positive number (m)", positive, cylinder);
+      d.container.height = c.need_real("height", "a positive number (m)", positive, cylinder);
+      d.container.axis = c.direction("axis").value_or(d.container.axis);
+      break;
+    }
   }
 
   const Table p = t.need_sub("particles", "a table { count, diameter, density }", why);

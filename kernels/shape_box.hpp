@@ -50,6 +50,12 @@ struct BoxShape {
     slab(local.z, h.z, r, 4, {0, 0, 1}, {0, 0, -1}, wall, escaped);
   }
 
+  // What decides it, for the scene's identity (src/identity.cpp): add(name, value, unit).
+  template <class Add>
+  static void identity(const ContainerGeometry& g, Add&& add) {
+    add("size", 2 * g.half_size, "m");
+  }
+
   // "box 0.05 x 0.05 x 0.05 m" (pdsim check).
   template <class Spec>
   static std::string describe(const Spec& c) {

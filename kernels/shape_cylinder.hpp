@@ -39,6 +39,14 @@ struct CylinderShape {
     BoxShape::slab(local.z, g.half_size.z, r, 4, {0, 0, 1}, {0, 0, -1}, wall, escaped);  // caps
   }
 
+  // What decides it, for the scene's identity (src/identity.cpp): add(name, value, unit); its
+  // axis is the container's orientation, which the identity holds apart.
+  template <class Add>
+  static void identity(const ContainerGeometry& g, Add&& add) {
+    add("radius", g.radius, "m");
+    add("height", 2 * g.half_size.z, "m");
+  }
+
   template <class Spec>
   static std::string describe(const Spec& c) {
     std::ostringstream s;

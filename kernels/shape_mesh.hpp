@@ -283,6 +283,14 @@ struct MeshShape {
     return complete;
   }
 
+  // What decides it, for the scene's identity (src/identity.cpp): add(name, value, unit); the
+  // triangles (corners, edges and normals) as a list, which the identity hashes.
+  template <class Add>
+  static void identity(const ContainerGeometry& g, Add&& add) {
+    add("triangles", g.surface->triangle, "");
+    add("curvature", g.surface->curvature, "degrees");
+  }
+
   template <class Spec>
   static std::string describe(const Spec& c) {
     const MeshSurface& s = *c.mesh;

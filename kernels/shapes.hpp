@@ -1,7 +1,8 @@
 // Every container shape: its name, the deck's words for it and its header. A new shape is its
-// header (geometry, walls, near-wall test, fill test, volume, size limit and wireframe, as
-// shape_box.hpp), a name in WallShape and a line in Shapes (the same place), its keys'
-// fields in ContainerSpec, and the reading of those keys in io/deck.cpp.
+// header (geometry, walls, near-wall test, fill test, volume, size limit, wireframe and what
+// identifies it, as shape_box.hpp), a name in WallShape and a line in Shapes (the same place),
+// its keys' fields in ContainerSpec, and the reading of those keys in io/deck.cpp (the shape
+// names there come from Shapes).
 #pragma once
 
 #include <memory>

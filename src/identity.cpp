@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <map>
+#include <type_traits>
 
 namespace pdsim {
 
@@ -41,22 +42,25 @@ class Hash {
   std::uint64_t value_ = 1469598103934665603ull;
 };
 
+// "box size 0.05 x 0.05 x 0.05 m": the shape's name and what it says decides it.
 std::string container_text(const EngineConfig& e) {
-  const ContainerGeometry& g = e.geometry;
-  switch (e.shape) {
-    case WallShape::box:
-      return "box " + exact3(2 * g.half_size, " x ") + " m";
-    case WallShape::cylinder:
-      return "cylinder radius " + exact(g.radius) + " m, height " + exact(2 * g.half_size.z) + " m";
-    case WallShape::mesh: {
+  std::string text = shape_name(e.shape);
+  const auto add = [&](const char* name, const auto& value, const char* unit) {
+    using T = std::decay_t<decltype(value)>;
+    text += std::string(" ") + name + " ";
+    if constexpr (std::is_same_v<T, Vec3>) {
+      text += exact3(value, " x ");
+    } else if constexpr (std::is_same_v<T, double>) {
+      text += exact(value);
+    } else {  // a list: its length and hash
       Hash h;
-      for (double v : g.surface->triangle) h.add(v);
-      return "mesh of " + std::to_string(g.surface->triangle.size() / kTriangleDoubles) +
-             " triangles within +-" + exact3(g.half_size, " x +-") + " m, curvature " +
-             exact(g.surface->curvature) + " degrees, triangles " + h.text();
+      for (double v : value) h.add(v);
+      text += std::to_string(value.size()) + " numbers " + h.text();
     }
-  }
-  return shape_name(e.shape);
+    if (*unit) text += std::string(" ") + unit;
+  };
+  with_shape(e.shape, [&](auto shape) { decltype(shape)::identity(e.geometry, add); });
+  return text;
 }
 
 std::string diameters_text(const std::vector<double>& radius) {

@@ -12,7 +12,7 @@
 namespace pdsim {
 
 // Named fields in a fixed order, each value as text with its unit ("damper[0].container" =
-// "box 0.05 x 0.05 x 0.05 m"). Fields named "bed.*" decide a settled bed only (the fill's
+// "box size 0.05 x 0.05 x 0.05 m"). Fields named "bed.*" decide a settled bed only (the fill's
 // positions, the settling thresholds, a step that follows the motion); the rest decide the
 // damper's design and its host: containers, particles, contact law and constants, gravity and a
 // penalty law's dt.
@@ -31,8 +31,8 @@ enum class IdentityScope { design, bed };
 
 // The fields within `scope` whose values differ between `kept` (a file's record, called
 // `kept_name`: "the map") and `now` (called `now_name`: "the deck"), as
-// "damper[0].container: box 0.05 x 0.05 x 0.05 m in the map, box 0.06 x 0.05 x 0.05 m in the
-// deck; ..."; "" when none does.
+// "damper[0].container: box size 0.05 x 0.05 x 0.05 m in the map, box size 0.06 x 0.05 x 0.05 m in
+// the deck; ..."; "" when none does.
 std::string identity_difference(const Identity& kept, const Identity& now, IdentityScope scope,
                                 const std::string& kept_name, const std::string& now_name);
 

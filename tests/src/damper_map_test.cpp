@@ -124,7 +124,8 @@ TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once i
   const Edit edits[] = {
       {"size = [0.03",
        "size = [0.04",
-       {"damper[0].container: box 0.03 x 0.03 x 0.02 m in the map, box 0.04 x 0.03 x 0.02 m "
+       {"damper[0].container: box size 0.03 x 0.03 x 0.02 m in the map, box size 0.04 x 0.03 x "
+        "0.02 m "
         "in the deck"}},
       {"diameter = 0.004",
        "diameter = 0.005",

@@ -102,7 +102,7 @@ inline Grid grid_around(Vec3 centre, Vec3 half_size, double reach, double max_ce
     g.ny = static_cast<int>(ceil(2 * (half_size.y + cell) / cell));
     g.nz = static_cast<int>(ceil(2 * (half_size.z + cell) / cell));
     const double cells = double(g.nx) * g.ny * g.nz;
-    if (cells <= max_cells) break;
+    if (!(cells > max_cells)) break;  // NaN sizes too: never a loop without end
     cell *= 1.01 * cbrt(cells / max_cells);
   }
   g.origin = centre - half_size - Vec3{cell, cell, cell};

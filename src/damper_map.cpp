@@ -222,6 +222,14 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
 
 namespace {
 
+// Removes the beds pdsim named for the runs (the shared bed.h5, or each rigid run's own); a
+// bed.file the deck names is the user's, refused by name when it no longer fits.
+void remove_run_beds(const Deck& deck, const std::vector<Deck>& runs) {
+  std::error_code ignored;
+  if (deck.bed.file.empty())
+    for (const Deck& run : runs) fs::remove(run.bed.file, ignored);
+}
+
 // Grid run k's results when its file holds them (of this run's deck), else nothing.
 std::optional<Results> finished_run(const Deck& run) {
   std::error_code ignored;
@@ -287,9 +295,9 @@ RunReport submit_map(const Deck& deck, const MapOptions& options, const std::str
   std::vector<int> running;
   job.tasks = pieces_to_submit(files, finished, options.resume, options.force, running);
   std::error_code ignored;
-  if (options.force) {  // the map and the bed its runs share are made anew with them
+  if (options.force) {  // the map and the beds pdsim named for its runs are made anew with them
     fs::remove(path, ignored);
-    if (deck.bed.file.empty()) fs::remove(fs::path(folder) / "bed.h5", ignored);
+    remove_run_beds(deck, runs);
   }
   std::string note;
   for (int k : running) note += (note.empty() ? "runs " : ", ") + std::to_string(k);
@@ -356,9 +364,8 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
     return {"", "map run " + std::to_string(options.run) + " of " + std::to_string(runs.size()) +
                     " finished: " + runs[k].output.file};
   }
-  // The bed the runs share is settled anew with them.
-  if (options.force && deck.bed.file.empty() && whole)
-    fs::remove(fs::path(folder) / "bed.h5", ignored);
+  // The beds of the runs are settled anew with them.
+  if (options.force && whole) remove_run_beds(deck, runs);
   std::vector<Results> results;
   std::string missing;
   for (std::size_t k = 0; k < runs.size(); ++k) {

@@ -41,6 +41,7 @@ class Driver::Impl {
     const auto fills = static_cast<std::size_t>(fills_max_), steps = frequencies_.size();
     scenes_.resize(fills);
     scenes_[0] = std::make_unique<Scene>(std::move(first));
+    identity_ = identity_text(scene_identity(*scenes_[0]));
     points_.assign(fills, std::vector<std::optional<FrequencyPoint>>(steps));
     done_.assign(steps, 0);
     beds_.resize(fills);
@@ -266,7 +267,7 @@ class Driver::Impl {
     in_parallel(missing.size(), [&](std::size_t k) { settle_bed(missing[k], progress); });
     if (!file.empty()) {
       Results saved;
-      saved.meta_text["identity"] = identity_text(scene_identity(*scenes_[0]));
+      saved.meta_text["identity"] = identity_;
       saved.meta_text["deck"] = deck_.text;
       saved.meta_numbers["realisations"] = double(first);
       put_beds(saved.checkpoint, first);
@@ -785,6 +786,7 @@ class Driver::Impl {
   void provenance(Results& r) const {
     RunFacts f;
     f.scene = scenes_[0].get();
+    f.identity = identity_;
     f.backend = backend_;
     f.variant = variant_;
     f.bed = reports_[0];
@@ -804,6 +806,7 @@ class Driver::Impl {
   }
 
   const DeckRecord deck_;
+  std::string identity_;              // fill 0's scene's (src/identity.hpp), taken once
   std::optional<Results> kept_beds_;  // read from bed.file before the run (read_bed_file())
   SceneMaker make_scene_;
   std::vector<std::unique_ptr<Scene>> scenes_;  // one per fill, built when first needed

@@ -98,6 +98,11 @@ Identity scene_identity(const Scene& scene) {
       add("contact.restitution", exact(n.restitution));
       add("contact.friction", exact(n.friction));
       add("contact.max_iterations", std::to_string(n.max_iterations));
+      // The thresholds the deck sets decide the model; derived ones follow each run's motion.
+      const auto given = [](double v) { return v > 0 ? exact(v) + " m/s" : "derived"; };
+      add("contact.rest_speed", given(scene.rest_speed_given));
+      add("contact.recovery_speed", given(scene.recovery_speed_given));
+      add("contact.tolerance", given(scene.tolerance_given));
       add("bed.contact.rest_speed", exact(n.rest_speed) + " m/s");
       add("bed.contact.recovery_speed", exact(n.recovery_speed) + " m/s");
       add("bed.contact.envelope", exact(n.envelope) + " m");

@@ -3,7 +3,6 @@
 #include "io/excitation.hpp"
 #include "pdsim_version.hpp"
 #include "src/format.hpp"
-#include "src/identity.hpp"
 
 namespace pdsim {
 
@@ -13,7 +12,7 @@ void write_provenance(Results& r, const DeckRecord& deck, const RunFacts& f) {
   const Scene& scene = *f.scene;
   t["deck"] = deck.text;
   t["deck_path"] = deck.path;
-  t["identity"] = identity_text(scene_identity(scene));
+  t["identity"] = f.identity;
   if (!deck.sweep_point.empty()) t["sweep_point"] = deck.sweep_point;
   t["title"] = deck.title;
   t["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";

@@ -20,6 +20,7 @@ struct DeckRecord {
 // What the Driver knows of a run when it writes a file.
 struct RunFacts {
   const Scene* scene = nullptr;  // fill 0's
+  std::string identity;          // its identity_text()
   std::string backend, variant;  // "" without particles
   BedReport bed;                 // fill 0's bed
   bool bed_from_file = false;

@@ -122,7 +122,9 @@ double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads) {
   // side or not (validation/results/memory.md). An engine for each run side by side, and a
   // kept bed for every fill a point may grow to.
   const int engines = runs_side_by_side(deck, threads, 0);
-  const int beds = std::max(engines, deck.excitation.settle.max_realisations);
+  const SettleSpec& settle = deck.excitation.settle;
+  const int beds = std::max(
+      engines, fixed_duration(deck.excitation) ? settle.realisations : settle.max_realisations);
   double mib =
       std::max(256.0, 64.0 + particles / 1024.0 * (5.0 * engines + 2.0 * (beds - engines)));
   // Particle snapshots are held until the file is written: 11 numbers a particle each.
@@ -220,7 +222,10 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
       !short_of.empty())
     std::cerr << "warning: " << short_of << "\n";
   Plan plan = plan_run(deck, scene, options.threads, options.jobs);
-  Driver driver(deck_record(deck), read_bed_file(scene, deck.where("bed.file")),
+  // A resumed run's checkpoint holds its first fills' beds: bed.file is not read (as before
+  // the first point, when it was).
+  Driver driver(deck_record(deck),
+                options.resume ? std::nullopt : read_bed_file(scene, deck.where("bed.file")),
                 std::move(plan.first), plan.make_scene, plan.jobs, options.quiet,
                 path + ".blowup.csv");
   if (options.resume) {

@@ -355,6 +355,9 @@ void nonsmooth_step(const Deck& deck, Scene& s, double r_min) {
   if (contact.recovery_speed > 0) p.recovery_speed = contact.recovery_speed;
   if (contact.tolerance > 0) p.tolerance = contact.tolerance;
   if (contact.max_iterations > 0) p.max_iterations = contact.max_iterations;
+  s.rest_speed_given = contact.rest_speed;
+  s.recovery_speed_given = contact.recovery_speed;
+  s.tolerance_given = contact.tolerance;
   for (DamperScene& d : s.dampers) d.engine.nonsmooth = p;
   s.contact_note = " (rigid: non-smooth contacts)";
   // An explicit scheme holds the container's velocity through a step, so a rigid impact sees
@@ -442,8 +445,10 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     // Every other fill a run may draw (scene_of_fill), drawn here once: a seed whose random fill
     // jams, or whose drawn diameters do not fit, is refused by check, not hours into a run.
     const ExcitationSpec& x = deck.excitation;
-    const int fills =
-        runs_points(x) ? std::max(x.settle.realisations, x.settle.max_realisations) : 1;
+    const int fills = !runs_points(x) ? 1
+                      : fixed_duration(x)
+                          ? x.settle.realisations
+                          : std::max(x.settle.realisations, x.settle.max_realisations);
     for (int r = 1; r < fills; ++r) {
       try {
         draw_fill(ds, d.particles.seed + static_cast<std::uint64_t>(r), at, key);

@@ -35,6 +35,9 @@ struct Scene {
   std::string warning;       // what the user accepted against advice (allow_unstable), or ""
   double contact_time = 0;   // s, linear: exact binary contact time; hertz: estimate at 1 m/s
   std::string contact_note;  // how contact_time was taken (the law's words), or ""
+  // Rigid contacts' thresholds as the deck gives them, m/s (0: derived from the scene's motion
+  // and step, as each map run's are): a choice of the damper's model (src/identity.cpp).
+  double rest_speed_given = 0, recovery_speed_given = 0, tolerance_given = 0;
   double rayleigh_time = 0;  // s, hertz only
   std::string dt_basis;      // how dt was chosen
   int threads = 0;

@@ -193,8 +193,10 @@ Point sweep_point_at(const Deck& deck, const std::string& folder, int k, Deck po
 void read_state(Point& p) {
   std::error_code ignored;
   if (fs::exists(p.file, ignored)) {
-    p.kept = changes_since(read_results(p.file), p.deck, nullptr).empty();
-    if (!p.kept) p.code = 2, p.detail = "its file was run from another deck or point";
+    const std::string changed = changes_since(read_results(p.file), p.deck, nullptr);
+    p.kept = changed.empty();
+    if (!p.kept)
+      p.code = 2, p.detail = "its file was run from another deck or point (" + changed + ")";
     return;
   }
   if (output_locked(p.file)) {

@@ -105,3 +105,32 @@ TEST_CASE("bed.file: check refuses a file that is no kept bed, or one of another
                        doctest::Contains("contact.damping_factor: "), InputError);
   fs::remove_all(dir);
 }
+
+// A resumed run takes its first fills' beds from its checkpoint: a bed.file settled since for
+// another deck is not read, so it cannot refuse the resume.
+TEST_CASE("bed.file: a resumed run does not read it, its checkpoint holding the beds") {
+  const fs::path dir = fs::temp_directory_path() / ("pdsim_bed_resume_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const std::string file = (dir / "bed.h5").string();
+  auto two_points = [&](double restitution) {
+    std::string text = deck(file, restitution, "[0, 0, 1]");
+    text.replace(text.find("frequencies = [20.0]"), 20, "frequencies = [20.0, 21.0]");
+    return parse_deck(text, "bed.toml");
+  };
+  RunOptions a;
+  a.output = (dir / "a.h5").string();
+  a.quiet = true;
+  a.stop_after = 1;
+  run_deck(two_points(0.5), a);
+  REQUIRE(fs::exists(a.output + ".partial"));
+  fs::remove(file);
+  RunOptions b = a;
+  b.output = (dir / "b.h5").string();
+  b.stop_after = 0;
+  run_deck(two_points(0.6), b);  // its own bed, kept in the same file
+  a.stop_after = 0;
+  a.resume = true;
+  run_deck(two_points(0.5), a);
+  CHECK(read_results(a.output).frf.frequency == std::vector<double>{20.0, 21.0});
+  fs::remove_all(dir);
+}

@@ -157,7 +157,7 @@ TEST_CASE("a map of one ball: 2/7 of its mass while it rolls, 4/pi mu m g once i
 // Rigid contacts: a step follows each run's motion, so each run settles and keeps its own bed
 // (a shared one was refused by the second run); the ball rolls and slides as with springs.
 TEST_CASE(
-    "a map of one ball on rigid contacts: each run its own bed, the same rolling and sliding") {
+    "a map of one ball on rigid contacts: each run its own bed; it rolls and slides as it should") {
   const fs::path dir = fs::temp_directory_path() / ("pdsim_map_rigid_" + std::to_string(getpid()));
   fs::create_directories(dir);
   std::string text = kBallDeck;
@@ -177,6 +177,25 @@ TEST_CASE(
   // = 1e-4 m/s lowers it to 0.024-0.032, 1e-5 no further). Held here so that it does not grow
   // unnoticed; the effective mass is 2/7 m as it should be.
   check_ball(m, 0.1);
+  // A bed's setting changed: --force settles every run's bed anew (it refused them before).
+  std::string longer = text;
+  longer.replace(longer.find("[solver]"), 8, "[bed]\nmax_time = 1.5\n[solver]");
+  options.force = true;
+  CHECK(read_results(run_map(parse_deck(longer, "rigid.toml"), options).output)
+            .map.frequency.size() == 4);
+  // A threshold the deck sets is the damper's model: a map made without it predicts no deck
+  // with it (derived ones follow each run's motion and may differ).
+  std::string tighter = text;
+  tighter.replace(tighter.find("friction = 0.3"), 14, "friction = 0.3\ntolerance = 1.0e-4");
+  PredictOptions predict;
+  predict.maps = {options.output};
+  predict.output = (dir / "hb.h5").string();
+  CHECK(read_results(run_predict(deck, predict).output).frf_hb.frequency.size() >= 1);
+  predict.force = true;
+  CHECK_THROWS_WITH_AS(
+      run_predict(parse_deck(tighter, "tight.toml"), predict),
+      doctest::Contains("contact.tolerance: derived in the map, 1e-04 m/s in the deck"),
+      InputError);
   fs::remove_all(dir);
 }
 

@@ -4,6 +4,7 @@
 // (src/coupled_system.cpp) and, for a new way to run a point, src/frequency_run.cpp.
 #pragma once
 
+#include <algorithm>
 #include <vector>
 
 #include "io/specs.hpp"
@@ -45,6 +46,18 @@ inline bool fixed_duration(const ExcitationSpec& x) {
   const auto p = traits(x.kind).periods;
   return p == ExcitationTraits::kFixed ||
          (p == ExcitationTraits::kFixedIfDuration && x.duration > 0);
+}
+
+// The fills a run of x starts each point with, and the most a point may grow to (a fixed
+// duration keeps its first; one fill where x has no points): the Driver's, check's and the
+// memory estimate's count alike.
+inline int first_fills(const ExcitationSpec& x) {
+  return runs_points(x) ? x.settle.realisations : 1;
+}
+inline int most_fills(const ExcitationSpec& x) {
+  return runs_points(x) && !fixed_duration(x)
+             ? std::max(x.settle.realisations, x.settle.max_realisations)
+             : first_fills(x);
 }
 
 // Whether x's points run each frequency to a steady state (the detector judges them).

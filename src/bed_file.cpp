@@ -42,7 +42,7 @@ std::optional<Results> read_bed_file(const Scene& scene, const SourcePos& where)
                          "); delete it or name another file");
   const double held =
       saved.meta_numbers.count("realisations") != 0 ? saved.meta_numbers.at("realisations") : 0.0;
-  const int first = runs_points(scene.excitation) ? scene.excitation.settle.realisations : 1;
+  const int first = first_fills(scene.excitation);
   if (held < first)
     throw InputError(where, "bed.file",
                      "'" + file + "' holds " + number(held) +

@@ -31,9 +31,8 @@ class Driver::Impl {
         quiet_(quiet),
         dump_path_(std::move(dump_path)) {
     const ExcitationSpec& x = first.excitation;
-    const bool swept = runs_points(x);
-    fills_min_ = swept ? x.settle.realisations : 1;
-    fills_max_ = swept && !fixed_duration(x) ? x.settle.max_realisations : fills_min_;
+    fills_min_ = first_fills(x);
+    fills_max_ = most_fills(x);
     // Every kind runs as points: its frequencies, or a free decay's one point (no frequency).
     frequencies_ = first.frequencies.empty() ? std::vector<double>{0.0} : first.frequencies;
     sweeps_ = x.sweeps;

@@ -117,14 +117,12 @@ double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads) {
   double particles = 0;
   for (const DamperScene& d : scene.dampers) particles += double(d.engine.particles.size());
   // Measured (peak resident size, `/usr/bin/time -v`): a fill of 100,000 and of 300,000 spheres
-  // peaks at 4.7 KiB a sphere (its engine, its kept bed and a copy while it is restored), each
+  // peaks at 4.6 KiB a sphere (its engine, its kept bed and a copy while it is restored), each
   // further fill adds 1.9 KiB (its kept bed); 1,000,000 spheres in two fills at 6.4 KiB, side by
   // side or not (validation/results/memory.md). An engine for each run side by side, and a
   // kept bed for every fill a point may grow to.
   const int engines = runs_side_by_side(deck, threads, 0);
-  const SettleSpec& settle = deck.excitation.settle;
-  const int beds = std::max(
-      engines, fixed_duration(deck.excitation) ? settle.realisations : settle.max_realisations);
+  const int beds = std::max(engines, most_fills(deck.excitation));
   double mib =
       std::max(256.0, 64.0 + particles / 1024.0 * (5.0 * engines + 2.0 * (beds - engines)));
   // Particle snapshots are held until the file is written: 11 numbers a particle each.

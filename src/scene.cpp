@@ -444,11 +444,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     fill_damper(ds, d.particles.seed, at, key);
     // Every other fill a run may draw (scene_of_fill), drawn here once: a seed whose random fill
     // jams, or whose drawn diameters do not fit, is refused by check, not hours into a run.
-    const ExcitationSpec& x = deck.excitation;
-    const int fills = !runs_points(x) ? 1
-                      : fixed_duration(x)
-                          ? x.settle.realisations
-                          : std::max(x.settle.realisations, x.settle.max_realisations);
+    const int fills = most_fills(deck.excitation);
     for (int r = 1; r < fills; ++r) {
       try {
         draw_fill(ds, d.particles.seed + static_cast<std::uint64_t>(r), at, key);

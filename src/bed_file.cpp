@@ -1,15 +1,14 @@
 #include "src/bed_file.hpp"
 
-#include "io/excitation.hpp"
-
 #include <filesystem>
 
 #include "src/format.hpp"
 
 namespace pdsim {
 
-std::optional<Results> read_bed_file(const Scene& scene, const SourcePos& where) {
-  const std::string& file = scene.bed.file;
+std::optional<Results> read_bed_file(const Scene& scene, const RunPlan& plan,
+                                     const SourcePos& where) {
+  const std::string& file = plan.bed.file;
   if (file.empty()) return std::nullopt;
   std::error_code unseen;
   const bool there = std::filesystem::exists(file, unseen);
@@ -34,7 +33,7 @@ std::optional<Results> read_bed_file(const Scene& scene, const SourcePos& where)
                          "was settled for; delete it (the bed is settled again) or name "
                          "another file");
   if (const std::string differ =
-          identity_difference(parse_identity(kept->second), scene_identity(scene),
+          identity_difference(parse_identity(kept->second), scene_identity(scene, plan.bed),
                               IdentityScope::bed, "in the file", "in the deck");
       !differ.empty())
     throw InputError(where, "bed.file",
@@ -42,7 +41,7 @@ std::optional<Results> read_bed_file(const Scene& scene, const SourcePos& where)
                          "); delete it or name another file");
   const double held =
       saved.meta_numbers.count("realisations") != 0 ? saved.meta_numbers.at("realisations") : 0.0;
-  const int first = first_fills(scene.excitation);
+  const int first = plan.first_fills;
   if (held < first)
     throw InputError(where, "bed.file",
                      "'" + file + "' holds " + number(held) +

@@ -444,7 +444,8 @@ void bench_saeki(const BenchOptions& o, Backend backend) {
   deck.excitation.frequency = 13.0;
   const Scene scene = build_scene(deck, 1, backend);
   const double dt = scene.dt, frequency = deck.excitation.frequency;
-  FrequencyRun run(scene);  // the bed settles in the resting container first, as a run's does
+  const RunPlan plan = plan_of(deck, scene);
+  FrequencyRun run(scene, plan);  // the bed settles in the resting container first, as a run's does
   const BedReport settled = run.settle_bed();
   CoupledSystem& system = run.system();
   system.configure(dt,

@@ -55,16 +55,14 @@ std::string check_report(const Deck& deck, const Scene& scene) {
     steps_per_second = 1.0 / scene.dt;
   }
   s << "backend: " << backend_name(scene.backend) << " (" << scene.backend_reason << ")\n";
-  if (scene.highest_frequency() > 0) {
-    s << "steps per period: "
-      << static_cast<long>(std::ceil(1.0 / (scene.highest_frequency() * scene.dt))) << " at "
-      << scene.highest_frequency() << " Hz\n";
+  const RunPlan plan = plan_of(deck, scene);
+  if (const double f_top = plan.highest_frequency(); f_top > 0) {
+    s << "steps per period: " << static_cast<long>(std::ceil(1.0 / (f_top * scene.dt))) << " at "
+      << f_top << " Hz\n";
   }
-  const ExcitationSpec& x = deck.excitation;
-  const SettleSpec& settle = x.settle;
-  const bool judged = runs_to_steady_state(x);
-  if (judged)
-    s << "frequencies: " << x.frequencies.size() << ", start = " << start_name(x.start)
+  const SettleSpec& settle = plan.settle;
+  if (plan.steady)
+    s << "frequencies: " << plan.points.size() << ", start = " << start_name(plan.start)
       << "; steady when the 95 % interval is within " << 100 * settle.tolerance << " % ("
       << settle.min_periods << " to " << settle.max_periods << " periods, " << settle.batches
       << " batches; " << settle.realisations
@@ -76,17 +74,17 @@ std::string check_report(const Deck& deck, const Scene& scene) {
       << ")\n";
   // A bed file the run would refuse is refused here, before any work (a run reads it whether
   // or not the bed settles).
-  const std::optional<Results> kept = read_bed_file(scene, deck.where("bed.file"));
-  if (deck.bed.settle) {
-    s << "bed: settled under gravity first, until no particle moves faster than " << scene.bed.speed
-      << " m/s for " << kBedHold_s << " s (at most " << deck.bed.max_time << " s)"
-      << (deck.bed.file.empty() ? ""
-          : kept                ? "; read from " + deck.bed.file + ", which holds it"
-                                : "; kept in " + deck.bed.file)
+  const std::optional<Results> kept = read_bed_file(scene, plan, deck.where("bed.file"));
+  if (const BedSpec& bed = plan.bed; bed.settle) {
+    s << "bed: settled under gravity first, until no particle moves faster than " << bed.speed
+      << " m/s for " << kBedHold_s << " s (at most " << bed.max_time << " s)"
+      << (bed.file.empty() ? ""
+          : kept           ? "; read from " + bed.file + ", which holds it"
+                           : "; kept in " + bed.file)
       << "\n";
   }
   // Estimated cost: simulated time x steps/s x particles, at an assumed 1e7 particle-steps/s.
-  const double simulated = simulated_time_bound(deck);
+  const double simulated = simulated_time_bound(plan);
   s << "simulated time: at most " << simulated << " s";
   if (total_particles > 0) {
     const double particle_steps =
@@ -101,12 +99,11 @@ std::string check_report(const Deck& deck, const Scene& scene) {
   }
   s << "\n";
   if (!scene.dampers.empty()) {
-    const int side_by_side = runs_side_by_side(deck, scene.threads, 0);
-    s << "memory: at most about " << number(memory_estimate_mib(deck, scene, scene.threads), 3)
-      << " MiB (" << side_by_side << " run" << (side_by_side > 1 ? "s" : "")
+    const int side_by_side = runs_side_by_side(plan, scene, 0);
+    s << "memory: at most about " << number(memory_estimate_mib(plan, scene), 3) << " MiB ("
+      << side_by_side << " run" << (side_by_side > 1 ? "s" : "")
       << " side by side, a core each; `pdsim run --threads N` sets how many)\n";
-    if (const std::string short_of = memory_shortfall(deck, scene, scene.threads);
-        !short_of.empty())
+    if (const std::string short_of = memory_shortfall(plan, scene); !short_of.empty())
       s << "warning: " << short_of << "\n";
   }
   return s.str();

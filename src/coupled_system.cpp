@@ -100,7 +100,7 @@ CoupledSystem::CoupledSystem(const Scene& scene)
     integrator_ = make_integrator(structure_, integrator_kind_, 1e-4);
     integrator_->q = integrator_->v = Eigen::VectorXd::Zero(structure_.size());
   } else {
-    prescribed_ = scene.excitation.motion;
+    prescribed_axis_ = scene.motion_axis;
     every_ = 1;
   }
   for (const DamperScene& d : scene.dampers) engines_.push_back(make_engine(d.engine));
@@ -265,7 +265,7 @@ double CoupledSystem::compute_dampers(double t, double lead, std::vector<double>
 
 void CoupledSystem::advance() {
   kinematics_at_configure_.clear();
-  if (prescribed_)
+  if (prescribed_axis_)
     step_prescribed();
   else if (coupling_.scheme == CouplingScheme::tight && !engines_.empty())
     step_tight();
@@ -274,13 +274,13 @@ void CoupledSystem::advance() {
 }
 
 void CoupledSystem::step_prescribed() {
-  const MotionSpec& m = *prescribed_;
+  const Vec3 axis = *prescribed_axis_;
   const ContainerKinematics moving = container_now(0);  // every container moves alike
-  const double u = dot(moving.position, m.axis);
+  const double u = dot(moving.position, axis);
   last_ = StepRecord{};
   last_.time = time_;
   last_.displacement = u;
-  last_.velocity = dot(moving.velocity, m.axis);
+  last_.velocity = dot(moving.velocity, axis);
   for (std::size_t k = 0; k < engines_.size(); ++k) {
     ContainerKinematics kin = moving;  // computed once a step; each container its own axes
     set_axes(kin, orientation(k));
@@ -290,7 +290,7 @@ void CoupledSystem::step_prescribed() {
     account_springs(k, totals, last_.dissipated[kTangential]);
     spring_energy_[k] = pending_spring_energy_[k];
     displacement_[k] = u;
-    force_mean_[k] = dot(totals.wall_force, m.axis);
+    force_mean_[k] = dot(totals.wall_force, axis);
     last_.damper_force += force_mean_[k];
     last_.power_in -= dot(totals.wall_force, kin.velocity);
     last_.contact_elastic += totals.tally.elastic;
@@ -451,9 +451,9 @@ double CoupledSystem::settle_step(double dt) {
 }
 
 ContainerKinematics CoupledSystem::container_now(std::size_t k) const {
-  if (prescribed_) {
+  if (prescribed_axis_) {
     // The drive holds the point's amplitude (pdsim map steps it at one frequency).
-    const Vec3 axis = prescribed_->axis;
+    const Vec3 axis = *prescribed_axis_;
     const double x = drive_.amplitude;
     ContainerKinematics c = translating(x * std::sin(drive_.angle(time_)) * axis,
                                         x * drive_.omega * std::cos(drive_.angle(time_)) * axis);

@@ -145,8 +145,8 @@ class CoupledSystem {
   IntegratorKind integrator_kind_;
   Vec3 direction_;
   Vec3 rotation_axis_;  // beam: axis x direction, about which a node's slope turns a damper
-  std::optional<MotionSpec> prescribed_;
-  const LinearStructure& structure_;  // the scene's (an empty one without a structure)
+  std::optional<Vec3> prescribed_axis_;  // no structure: the containers move along it
+  const LinearStructure& structure_;     // the scene's (an empty one without a structure)
   std::unique_ptr<StructureIntegrator> integrator_;
   std::vector<std::unique_ptr<DemEngine>> engines_;
   Drive drive_;

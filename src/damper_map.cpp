@@ -12,6 +12,7 @@
 #include "pdsim_version.hpp"
 #include "src/identity.hpp"
 #include "src/format.hpp"
+#include "src/run_plan.hpp"
 #include "src/slurm.hpp"
 
 namespace pdsim {
@@ -310,9 +311,8 @@ RunReport submit_map(const Deck& deck, const MapOptions& options, const std::str
                 " writes the map once every run has finished"};
   for (int k : job.tasks) {
     const Deck& run = runs[static_cast<std::size_t>(k - 1)];
-    job.memory_mib =
-        std::max(job.memory_mib,
-                 memory_estimate_mib(run, build_scene(run, threads, options.backend), threads));
+    const Scene scene = build_scene(run, threads, options.backend);
+    job.memory_mib = std::max(job.memory_mib, memory_estimate_mib(plan_of(run, scene), scene));
   }
   job.name = "pdsim-" + fs::path(path).stem().string();
   job.threads = threads;
@@ -390,7 +390,9 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   map.meta_numbers = results.front().meta_numbers;
   map.meta_text["deck"] = deck.text;
   map.meta_text["deck_path"] = deck.path;
-  map.meta_text["identity"] = identity_text(scene_identity(build_scene(runs.front())));
+  const Scene scene = build_scene(runs.front());
+  map.meta_text["identity"] =
+      identity_text(scene_identity(scene, plan_of(runs.front(), scene).bed));
   map.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
   map.meta_text.erase("coupling");  // a prescribed motion couples nothing
   for (Results& r : results)

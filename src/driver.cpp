@@ -22,25 +22,21 @@ namespace pdsim {
 
 class Driver::Impl {
  public:
-  Impl(DeckRecord deck, std::optional<Results> kept_beds, Scene first, SceneMaker make_scene,
-       int jobs, bool quiet, std::string dump_path)
+  Impl(DeckRecord deck, RunPlan plan, std::optional<Results> kept_beds, Scene first,
+       SceneMaker make_scene, int jobs, bool quiet, std::string dump_path)
       : deck_(std::move(deck)),
+        plan_(std::move(plan)),
         kept_beds_(std::move(kept_beds)),
         make_scene_(std::move(make_scene)),
         jobs_(jobs),
         quiet_(quiet),
         dump_path_(std::move(dump_path)) {
-    const ExcitationSpec& x = first.excitation;
-    fills_min_ = first_fills(x);
-    fills_max_ = most_fills(x);
-    // Every kind runs as points: its frequencies, or a free decay's one point (no frequency).
-    frequencies_ = first.frequencies.empty() ? std::vector<double>{0.0} : first.frequencies;
-    sweeps_ = x.sweeps;
-    sweeps_.resize(frequencies_.size(), 1);
-    const auto fills = static_cast<std::size_t>(fills_max_), steps = frequencies_.size();
+    fills_min_ = plan_.first_fills;
+    fills_max_ = plan_.most_fills;
+    const auto fills = static_cast<std::size_t>(fills_max_), steps = plan_.points.size();
     scenes_.resize(fills);
     scenes_[0] = std::make_unique<Scene>(std::move(first));
-    identity_ = identity_text(scene_identity(*scenes_[0]));
+    identity_ = identity_text(scene_identity(*scenes_[0], plan_.bed));
     points_.assign(fills, std::vector<std::optional<FrequencyPoint>>(steps));
     done_.assign(steps, 0);
     beds_.resize(fills);
@@ -67,7 +63,7 @@ class Driver::Impl {
     for (std::size_t r = 0; r < filled && r < beds_.size(); ++r) {
       beds_[r] = get_state(c, "bed.r" + std::to_string(r) + ".");
       if (!beds_[r].empty()) reports_[r] = unpack_report(c, r);
-      for (std::size_t i = 0; i < frequencies_.size(); ++i)
+      for (std::size_t i = 0; i < plan_.points.size(); ++i)
         if (const auto it = c.find(point_key(r, i)); it != c.end()) {
           points_[r][i] = unpack(state_values<double>(c, point_key(r, i)));
           unpack_periods(state_values<double>(c, point_key(r, i) + ".periods"), *points_[r][i]);
@@ -84,9 +80,12 @@ class Driver::Impl {
     if (independent()) {  // fill 0's segments, by the frequency each sample was taken at
       const TimeSeries& ts = partial.timeseries;
       for (std::size_t j = 0; j < ts.frequency.size(); ++j) {
-        const auto at = std::find(frequencies_.begin(), frequencies_.end(), ts.frequency[j]);
-        if (at == frequencies_.end()) continue;
-        TimeSeries& segment = segments_[static_cast<std::size_t>(at - frequencies_.begin())];
+        const auto& points = plan_.points;
+        const auto at = std::find_if(points.begin(), points.end(), [&](const PlanPoint& p) {
+          return p.frequency == ts.frequency[j];
+        });
+        if (at == points.end()) continue;
+        TimeSeries& segment = segments_[static_cast<std::size_t>(at - points.begin())];
         std::vector<const std::vector<double>*> from;
         timeseries_columns(ts, [&](const char*, const auto& column, const char*, const char*) {
           from.push_back(&column);
@@ -125,9 +124,9 @@ class Driver::Impl {
   static std::string point_key(std::size_t r, std::size_t i) {
     return "point.r" + std::to_string(r) + ".f" + std::to_string(i);
   }
-  const ExcitationSpec& excitation() const { return scenes_[0]->excitation; }
-  bool independent() const { return excitation().start == FrequencyStart::independent; }
-  bool prescribed() const { return traits(excitation().kind).moves_containers; }
+  bool independent() const { return plan_.independent(); }
+  bool prescribed() const { return plan_.prescribed; }
+  const PlanPoint& planned(std::size_t s) const { return plan_.points[s]; }
 
   // Fill r's scene, built when it is first needed.
   const Scene& scene(std::size_t r) {
@@ -147,19 +146,18 @@ class Driver::Impl {
   // way to a later point join it only in the rows, so that no decision depends on the order
   // fills run in), or on all that ran it.
   Ensemble judge_step(std::size_t s, std::size_t count = SIZE_MAX) const {
-    if (!measures_harmonics(excitation())) return {};  // nothing to judge: done once run
+    if (!plan_.harmonics) return {};  // nothing to judge: done once run
     std::vector<FrequencyPoint> runs;
     for (const auto& [r, p] : fills_at(s))
       if (static_cast<std::size_t>(r) < count) runs.push_back(p);
-    return judge_fills(runs, excitation());
+    return judge_fills(runs, plan_);
   }
 
   // The /frf (or /prescribed) rows of every finished point, in the order they are run.
   void add_rows(Results& out) const {
-    if (!measures_harmonics(excitation())) return;
-    for (std::size_t s = 0; s < frequencies_.size(); ++s)
-      if (done_[s])
-        add_row(out, fills_at(s), sweeps_[s], point_amplitude(excitation(), s), excitation());
+    if (!plan_.harmonics) return;
+    for (std::size_t s = 0; s < plan_.points.size(); ++s)
+      if (done_[s]) add_row(out, fills_at(s), planned(s).sweep, planned(s).amplitude, plan_);
   }
 
   // Adds what `run` did since `seen` (its particle steps and simulated time) to the totals.
@@ -252,7 +250,7 @@ class Driver::Impl {
     for (std::size_t r = 0; r < first; ++r)
       if (beds_[r].empty()) missing.push_back(r);
     if (missing.empty()) return;
-    const std::string& file = scenes_[0]->bed.file;
+    const std::string& file = plan_.bed.file;
     if (std::optional<Results> saved = std::exchange(kept_beds_, std::nullopt)) {
       const auto held = static_cast<std::size_t>(saved->meta_numbers["realisations"]);
       for (std::size_t r = 0; r < std::min(held, beds_.size()); ++r)
@@ -274,7 +272,7 @@ class Driver::Impl {
     }
   }
   void settle_bed(std::size_t r, Progress& progress) {
-    FrequencyRun run(scene(r), [&](double f, double done) { progress.update(r, done, f); });
+    FrequencyRun run(scene(r), plan_, [&](double f, double done) { progress.update(r, done, f); });
     BedReport report;
     try {
       report = run.settle_bed();
@@ -300,11 +298,10 @@ class Driver::Impl {
     // Progress: a slot per fill (carried: the points it has run, resumed ones included) or per
     // point (independent: its fills run in this session); the first fills' work, to which
     // fills added later add theirs.
-    const std::size_t slots = independent() ? frequencies_.size() : beds_.size();
+    const std::size_t slots = independent() ? plan_.points.size() : beds_.size();
     const double total =
-        independent() ? double(todo) * fills_min_ : double(frequencies_.size()) * fills_min_;
-    Progress progress(quiet_, std::max(slots, beds_.size()), std::max(total, 1.0),
-                      runs_to_steady_state(excitation()));
+        independent() ? double(todo) * fills_min_ : double(plan_.points.size()) * fills_min_;
+    Progress progress(quiet_, std::max(slots, beds_.size()), std::max(total, 1.0), plan_.steady);
     progress_ = &progress;
     settle_beds(progress);
     if (independent())
@@ -317,7 +314,7 @@ class Driver::Impl {
   // How many fills the point should have next: enough for a Student-t interval of the spread
   // seen (t(R-1) s / sqrt(R)) to meet the tolerance, at least two more, at most twice as many.
   int more_fills(const Ensemble& e, int now) const {
-    const double tolerance = excitation().settle.tolerance;
+    const double tolerance = plan_.settle.tolerance;
     const GroupMean& m = e.mean;
     const double scale = now > 1 ? student_t975(now - 1) * std::sqrt(1 + 1.0 / now) : 0;
     const double sa = scale > 0 ? m.amplitude_spread / scale : 0;
@@ -334,13 +331,13 @@ class Driver::Impl {
   }
   std::string point_name(std::size_t s) const {
     bool both = false;
-    for (int sweep : sweeps_) both = both || sweep != sweeps_[0];
-    const std::string amplitude = excitation().amplitudes.empty()
-                                      ? ""
-                                      : ", amplitude " + number(point_amplitude(excitation(), s)) +
-                                            (prescribed() ? " m" : "");
-    return "f = " + number(frequencies_[s]) + " Hz" + amplitude +
-           (both ? (sweeps_[s] > 0 ? " (up)" : " (down)") : "");
+    for (const PlanPoint& p : plan_.points) both = both || p.sweep != planned(0).sweep;
+    const PlanPoint& p = planned(s);
+    const std::string amplitude =
+        plan_.amplitude_steps ? ", amplitude " + number(p.amplitude) + (prescribed() ? " m" : "")
+                              : "";
+    return "f = " + number(p.frequency) + " Hz" + amplitude +
+           (both ? (p.sweep > 0 ? " (up)" : " (down)") : "");
   }
   void say_adding(std::size_t s, const Ensemble& e, int now, int next) {
     progress_->say(point_name(s) + ": " + ensemble_text(e, prescribed()) + "; " +
@@ -354,8 +351,8 @@ class Driver::Impl {
   // it (catching up from their beds through the points before). Which fill a worker takes
   // changes only the order of the work, never what a fill computes.
   void run_carried(Progress& progress) {
-    const auto last = static_cast<long>(frequencies_.size()) - 1;
-    want_.assign(frequencies_.size(), fills_min_);
+    const auto last = static_cast<long>(plan_.points.size()) - 1;
+    want_.assign(plan_.points.size(), fills_min_);
     target_.assign(beds_.size(), -1);
     busy_.assign(beds_.size(), 0);
     for (std::size_t r = 0; r < static_cast<std::size_t>(fills_min_); ++r) target_[r] = last;
@@ -430,7 +427,7 @@ class Driver::Impl {
       double amplitude = 0, periods = 0;
       int fills = 0;
     };
-    const std::size_t points = frequencies_.size();
+    const std::size_t points = plan_.points.size();
     std::vector<Measured> seen(points);
     std::vector<std::pair<double, std::size_t>> finished;  // (amplitude, point), judged points
     for (std::size_t s = 0; s < points; ++s) {
@@ -454,7 +451,7 @@ class Driver::Impl {
     // the highest point fell 50 % short; this was within 10 %.)
     auto learned = [&](double amplitude) -> std::pair<double, double> {
       if (finished.empty())  // not called before a point has finished (judge_ready())
-        return {double(excitation().settle.max_periods), double(fills_max_)};
+        return {double(plan_.settle.max_periods), double(fills_max_)};
       auto at = [&](std::size_t k) {
         const std::size_t s = finished[k].second;
         return std::pair<double, double>{seen[s].periods, double(want_[s])};
@@ -477,7 +474,7 @@ class Driver::Impl {
     auto predicted = [&](std::size_t s) {
       const Scene& scene = *scenes_[0];
       if (!last || !scene.structure || last->frequency <= 0) return 0.0;
-      const double w0 = 2 * kPi * last->frequency, w = 2 * kPi * frequencies_[s];
+      const double w0 = 2 * kPi * last->frequency, w = 2 * kPi * planned(s).frequency;
       std::vector<std::complex<double>> impedance;
       for (std::size_t k = 0; k < last->mean.container.size(); ++k) {
         const std::complex<double> u = last->mean.container[k];
@@ -485,7 +482,7 @@ class Driver::Impl {
         impedance.emplace_back(z.real() / (w0 * w0) * w * w, z.imag() / w0 * w);
       }
       const DrivePhasors drive =
-          drive_phasors(*scene.structure, excitation().input, point_amplitude(excitation(), s), w);
+          drive_phasors(*scene.structure, plan_.input, planned(s).amplitude, w);
       return std::abs((scene.structure->response.cast<std::complex<double>>() *
                        harmonic_response(*scene.structure, w, drive.load, impedance, drive.base))
                           .value());
@@ -496,7 +493,7 @@ class Driver::Impl {
       const auto [periods, wanted] = seen[s].fills > 0
                                          ? std::pair<double, double>{seen[s].periods, 0.0}
                                          : learned(predicted(s));
-      const double f = frequencies_[s] > 0 ? frequencies_[s] : 1.0;
+      const double f = planned(s).frequency > 0 ? planned(s).frequency : 1.0;
       cost[s] = periods / f;
       const double expected = seen[s].fills > 0 ? learned(seen[s].amplitude).second : wanted;
       fills[s] = done_[s]
@@ -517,7 +514,7 @@ class Driver::Impl {
   // Judges every point whose wanted fills have all run it (mutex_ held): finished, or more
   // fills sent to it.
   void judge_ready() {
-    for (std::size_t s = 0; s < frequencies_.size(); ++s) {
+    for (std::size_t s = 0; s < plan_.points.size(); ++s) {
       if (done_[s]) continue;
       bool ready = true;
       for (std::size_t r = 0; r < static_cast<std::size_t>(want_[s]); ++r)
@@ -541,8 +538,7 @@ class Driver::Impl {
     // The model learns from finished points: before the first, it knows no point's cost (it
     // took min_periods for each, and the running point overtook that: "100 %, ETA 0 s" for
     // minutes), so the line says "ETA after the first frequency" until one is done.
-    if (runs_to_steady_state(excitation()) &&
-        std::any_of(done_.begin(), done_.end(), [](char d) { return d != 0; }))
+    if (plan_.steady && std::any_of(done_.begin(), done_.end(), [](char d) { return d != 0; }))
       progress_->set_work(simulated_ - simulated_start_, planned_remaining());
   }
 
@@ -551,11 +547,12 @@ class Driver::Impl {
     if (!runs_[r]) {
       ensure_bed(r, progress);
       std::lock_guard<std::mutex> lock(mutex_);  // task_states_ and results_ are shared
-      runs_[r] = std::make_unique<FrequencyRun>(scene(r), [this, r, &progress](double f, double d) {
-        // d is the point's periods over max_periods (FrequencyRun::run_period())
-        progress.update(r, double(reached_[r] + 1) + d, f,
-                        f > 0 ? d * excitation().settle.max_periods / f : 0.0);
-      });
+      runs_[r] =
+          std::make_unique<FrequencyRun>(scene(r), plan_, [this, r, &progress](double f, double d) {
+            // d is the point's periods over max_periods (FrequencyRun::run_period())
+            progress.update(r, double(reached_[r] + 1) + d, f,
+                            f > 0 ? d * plan_.settle.max_periods / f : 0.0);
+          });
       FrequencyRun& run = *runs_[r];
       if (const auto it = task_states_.find(r); it != task_states_.end()) {
         run.restore(it->second);
@@ -570,7 +567,7 @@ class Driver::Impl {
     FrequencyPoint point;
     try {
       if (!looking())
-        point = run.run_point(frequencies_[k], point_amplitude(excitation(), k));
+        point = run.run_point(planned(k).frequency, planned(k).amplitude);
       else if (run_with_looks(run, r, k))
         point = run.finish();
       else
@@ -579,7 +576,7 @@ class Driver::Impl {
       fail(run, r, e);
     }
     // The fill's state, for a resume, while it has points left.
-    const bool more = k + 1 < frequencies_.size();
+    const bool more = k + 1 < plan_.points.size();
     StateArrays state = checkpoint_ && more ? run.save() : StateArrays{};
     std::lock_guard<std::mutex> lock(mutex_);
     points_[r][k] = std::move(point);
@@ -591,7 +588,8 @@ class Driver::Impl {
       results_.energy = run.energy();
       results_.particles = run.particles();
     }
-    progress_->update(r, double(k + 1), frequencies_[k], 0.0);  // its time is in simulated_ now
+    progress_->update(r, double(k + 1), planned(k).frequency,
+                      0.0);  // its time is in simulated_ now
     const bool catching_up = r >= static_cast<std::size_t>(want_[k]);
     progress_->say(describe(*points_[r][k], r) + (catching_up ? " (catching up)" : ""));
   }
@@ -608,8 +606,7 @@ class Driver::Impl {
   // deck.
   static constexpr int kLookPeriods = 25;
   bool looking() const {
-    return !independent() && fills_min_ >= 2 && runs_to_steady_state(excitation()) &&
-           excitation().settle.average_periods == 0;
+    return !independent() && fills_min_ >= 2 && plan_.steady && plan_.settle.average_periods == 0;
   }
   // The means fill r's pending look compares (mutex_ held): its own and those of the fills
   // before it at that look, or their final ones; empty while one has not got there.
@@ -634,7 +631,7 @@ class Driver::Impl {
     if (look_at_[r] == 0) {
       looks_[r][k].clear();  // a point run again after a resume posts the same means again
       lock.unlock();
-      run.begin_point(frequencies_[k], point_amplitude(excitation(), k));
+      run.begin_point(planned(k).frequency, planned(k).amplitude);
       lock.lock();
     }
     for (;;) {
@@ -663,7 +660,7 @@ class Driver::Impl {
   // Independent points side by side, each point's fills in turn from their settled beds.
   void run_independent(Progress& progress) {
     std::vector<std::size_t> todo;
-    for (std::size_t s = 0; s < frequencies_.size(); ++s)
+    for (std::size_t s = 0; s < plan_.points.size(); ++s)
       if (!done_[s]) todo.push_back(s);
     in_parallel(todo.size(), [&](std::size_t k) {
       const std::size_t s = todo[k];
@@ -672,13 +669,13 @@ class Driver::Impl {
         for (std::size_t r = 0; r < static_cast<std::size_t>(want); ++r, done += 1) {
           if (points_[r][s]) continue;
           ensure_bed(r, progress);
-          FrequencyRun run(scene(r),
+          FrequencyRun run(scene(r), plan_,
                            [&, k](double f, double d) { progress.update(k, done + d, f); });
           run.restore(beds_[r]);
           Seen seen{run.system().particle_steps(), run.system().time()};
           FrequencyPoint point;
           try {
-            point = run.run_point(frequencies_[s], point_amplitude(excitation(), s));
+            point = run.run_point(planned(s).frequency, planned(s).amplitude);
           } catch (const SimulationError& e) {
             fail(run, r, e);
           }
@@ -705,7 +702,7 @@ class Driver::Impl {
   void finished_step(std::size_t s) {
     ++finished_;
     done_[s] = 1;
-    if (measures_harmonics(excitation()))
+    if (plan_.harmonics)
       progress_->say(point_name(s) + ": " + ensemble_text(judge_step(s), prescribed()));
     if (std::all_of(done_.begin(), done_.end(), [](char d) { return d != 0; }) || !checkpoint_)
       return;
@@ -720,7 +717,7 @@ class Driver::Impl {
     c["run.done"] = std::vector<std::int32_t>(done_.begin(), done_.end());
     if (bed_from_file_) c["bed.from_file"] = std::vector<std::int32_t>{1};
     for (std::size_t k = 0; k < fills; ++k)
-      for (std::size_t f = 0; f < frequencies_.size(); ++f)
+      for (std::size_t f = 0; f < plan_.points.size(); ++f)
         if (points_[k][f]) {
           c[point_key(k, f)] = pack(*points_[k][f]);
           c[point_key(k, f) + ".periods"] = pack_periods(*points_[k][f]);
@@ -762,17 +759,16 @@ class Driver::Impl {
   }
 
   std::string describe(const FrequencyPoint& p, std::size_t r) const {
-    const ExcitationSpec& x = excitation();
-    if (!measures_harmonics(x))
-      return "free decay from " + number(x.initial_displacement) + " m: " + number(x.duration) +
-             " s";
+    if (!plan_.harmonics)
+      return "free decay from " + number(plan_.initial_displacement) +
+             " m: " + number(plan_.duration) + " s";
     std::ostringstream s;
     s.precision(4);
     s << "f = " << p.frequency << " Hz";
     if (fills_max_ > 1) s << " (fill " << r + 1 << ")";
     s << ": " << amplitude_text(std::abs(p.judged.mean), p.judged.amplitude_ci, prescribed())
       << ", " << p.judged.periods << " periods (" << p.judged.discarded << " warm-up)";
-    if (fixed_duration(x))
+    if (plan_.fixed)
       s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
     else
       s << (p.judged.by_spread   ? ", settled to a third of the fills' spread"
@@ -785,6 +781,7 @@ class Driver::Impl {
   void provenance(Results& r) const {
     RunFacts f;
     f.scene = scenes_[0].get();
+    f.plan = &plan_;
     f.identity = identity_;
     f.backend = backend_;
     f.variant = variant_;
@@ -805,6 +802,7 @@ class Driver::Impl {
   }
 
   const DeckRecord deck_;
+  const RunPlan plan_;                // every fill's FrequencyRun reads it
   std::string identity_;              // fill 0's scene's (src/identity.hpp), taken once
   std::optional<Results> kept_beds_;  // read from bed.file before the run (read_bed_file())
   SceneMaker make_scene_;
@@ -814,8 +812,6 @@ class Driver::Impl {
   bool quiet_;
   std::string dump_path_;
   int fills_min_ = 1, fills_max_ = 1;
-  std::vector<double> frequencies_;  // of the points, in the order they are run
-  std::vector<int> sweeps_;          // +1 up, -1 down, per point
   std::vector<std::vector<std::optional<FrequencyPoint>>> points_;  // [fill][point]
   std::vector<char> done_;                                          // per point
   std::vector<StateArrays> beds_;
@@ -851,10 +847,11 @@ class Driver::Impl {
   int threads_ = 1;
 };
 
-Driver::Driver(DeckRecord deck, std::optional<Results> kept_beds, Scene first,
+Driver::Driver(DeckRecord deck, RunPlan plan, std::optional<Results> kept_beds, Scene first,
                SceneMaker make_scene, int jobs, bool quiet, std::string dump_path)
-    : impl_(std::make_unique<Impl>(std::move(deck), std::move(kept_beds), std::move(first),
-                                   std::move(make_scene), jobs, quiet, std::move(dump_path))) {}
+    : impl_(std::make_unique<Impl>(std::move(deck), std::move(plan), std::move(kept_beds),
+                                   std::move(first), std::move(make_scene), jobs, quiet,
+                                   std::move(dump_path))) {}
 Driver::~Driver() = default;
 void Driver::resume_from(const Results& partial) {
   impl_->resume_from(partial);

@@ -1,4 +1,4 @@
-// The driver of a run: a deck's excitation on its fills, side by side, with checkpoints after
+// The driver of a run: a plan's points on its fills, side by side, with checkpoints after
 // every finished point, the rows of the finished points and the run's provenance.
 #pragma once
 
@@ -10,11 +10,12 @@
 
 #include "io/results.hpp"
 #include "src/provenance.hpp"
+#include "src/run_plan.hpp"
 #include "src/scene.hpp"
 
 namespace pdsim {
 
-// Runs a deck's excitation on its fills (realisations: fill seeds seed + r). A point (one
+// Runs a plan's points on its fills (realisations: fill seeds seed + r). A point (one
 // frequency of one sweep) starts with settle.realisations fills; while the ensemble mean is
 // not known to the tolerance, fills are added up to settle.max_realisations. In a carried
 // sweep every fill carries its state from one point to the next, so that a fill added at a
@@ -25,11 +26,11 @@ namespace pdsim {
 class Driver {
  public:
   using SceneMaker = std::function<Scene(int fill)>;
-  // `first` is fill 0's scene, `make_scene(r)` builds fill r's; `kept_beds` the beds read
-  // from bed.file (read_bed_file()), if any; `dump_path` receives the particles of a run that
-  // blows up ("" : none).
-  Driver(DeckRecord deck, std::optional<Results> kept_beds, Scene first, SceneMaker make_scene,
-         int jobs, bool quiet, std::string dump_path);
+  // `plan` says what runs, `first` is fill 0's scene, `make_scene(r)` builds fill r's;
+  // `kept_beds` the beds read from bed.file (read_bed_file()), if any; `dump_path` receives the
+  // particles of a run that blows up ("" : none).
+  Driver(DeckRecord deck, RunPlan plan, std::optional<Results> kept_beds, Scene first,
+         SceneMaker make_scene, int jobs, bool quiet, std::string dump_path);
   ~Driver();
   // Continues from the checkpoint of an interrupted run (its points, beds and records).
   void resume_from(const Results& partial);

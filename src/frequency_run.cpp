@@ -14,12 +14,12 @@ constexpr int kRefinements = 4, kProbePeriods = 3;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 }  // namespace
 
-FrequencyRun::FrequencyRun(const Scene& scene, Progress progress)
-    : scene_(scene), system_(scene), progress_(std::move(progress)) {
-  const double f_top = scene.highest_frequency() > 0 ? scene.highest_frequency() : first_mode();
-  sample_every_ = scene.output.every > 0 ? scene.output.every : 1.0 / (32 * f_top);
-  if (scene.output.energy) energy_.emplace();
-  if (scene.output.particles_every > 0) {
+FrequencyRun::FrequencyRun(const Scene& scene, const RunPlan& plan, Progress progress)
+    : scene_(scene), plan_(plan), system_(scene), progress_(std::move(progress)) {
+  const double f_top = plan.highest_frequency() > 0 ? plan.highest_frequency() : first_mode();
+  sample_every_ = plan.output.every > 0 ? plan.output.every : 1.0 / (32 * f_top);
+  if (plan.output.energy) energy_.emplace();
+  if (plan.output.particles_every > 0) {
     ParticleSnapshots& s = particles_.emplace();
     for (std::size_t k = 0; k < scene.dampers.size(); ++k) {
       const EngineConfig& c = scene.dampers[k].engine;
@@ -53,16 +53,16 @@ double FrequencyRun::first_mode() const {
 
 BedReport FrequencyRun::settle_bed() {
   BedReport report;
-  if (!scene_.bed.settle || system_.engines().empty()) return report;
+  if (!plan_.bed.settle || system_.engines().empty()) return report;
   report.ran = true;
   const double dt = scene_.dt;
   const long long hold = std::llround(std::ceil(kBedHold_s / dt));
-  const long long most = std::llround(std::ceil(scene_.bed.max_time / dt));
+  const long long most = std::llround(std::ceil(plan_.bed.max_time / dt));
   long long calm = 0, steps = 0;
   while (steps < most && calm < hold) {
     if (stop_requested()) throw Interrupted();
     report.speed = system_.settle_step(dt);
-    calm = report.speed <= scene_.bed.speed ? calm + 1 : 0;
+    calm = report.speed <= plan_.bed.speed ? calm + 1 : 0;
     ++steps;
     if (progress_ && steps % 2000 == 0) progress_(0.0, double(steps) / double(most));
   }
@@ -86,7 +86,7 @@ int FrequencyRun::configure(double frequency, double amplitude) {
   const Drive& old = system_.drive();
   const double angle = restored_ ? restored_angle_ : old.omega > 0 ? old.angle(system_.time()) : 0;
   restored_ = false;
-  Drive drive{scene_.excitation.input, amplitude, 2 * kPi * frequency, system_.time(),
+  Drive drive{plan_.input, amplitude, 2 * kPi * frequency, system_.time(),
               std::fmod(angle, 2 * kPi)};
   jump([&] { system_.configure(period / steps, drive); });
   dt_ = period / steps;
@@ -124,7 +124,7 @@ void FrequencyRun::snapshot() {
     push(d.container_position, c.position);
     for (const Vec3& axis : {c.axis_x, c.axis_y, c.axis_z}) push(d.container_axes, axis);
   }
-  next_snapshot_ += scene_.output.particles_every;
+  next_snapshot_ += plan_.output.particles_every;
 }
 
 void FrequencyRun::step() {
@@ -218,7 +218,7 @@ void FrequencyRun::run_period() {
 // The periods after the predicted start's refinement, and how they are judged.
 std::pair<std::vector<std::complex<double>>, SteadyStateCriteria> FrequencyRun::measured() const {
   const Ongoing& o = *ongoing_;
-  const SettleSpec& settle = scene_.excitation.settle;
+  const SettleSpec& settle = plan_.settle;
   const auto all =
       o.tracker.series(o.prescribed ? &PeriodSummary::force : &PeriodSummary::displacement);
   // Each fill settles on its own to the tolerance: its value is one member of the point's
@@ -235,7 +235,7 @@ std::pair<std::vector<std::complex<double>>, SteadyStateCriteria> FrequencyRun::
 
 Stationary FrequencyRun::judge() const {
   const auto [series, criteria] = measured();
-  const int n = static_cast<int>(series.size()), average = scene_.excitation.settle.average_periods;
+  const int n = static_cast<int>(series.size()), average = plan_.settle.average_periods;
   Stationary s = analyse_periods(series, criteria,
                                  average > 0 ? std::max(0, n - average) : ongoing_->look_first);
   s.periods += ongoing_->settled_from;
@@ -257,13 +257,13 @@ bool FrequencyRun::look(const Floors& floors) {
 }
 
 void FrequencyRun::begin_frequency(double frequency, double amplitude, FrequencyStart start) {
-  const ExcitationSpec& x = scene_.excitation;
-  const SettleSpec& settle = x.settle;
-  const bool prescribed = traits(x.kind).moves_containers;
+  const SettleSpec& settle = plan_.settle;
+  const bool prescribed = plan_.prescribed;
   const int samples = configure(frequency, amplitude);
-  const bool fixed = fixed_duration(x);
-  const int max_periods = fixed ? std::max(1, static_cast<int>(std::lround(x.duration * frequency)))
-                                : settle.max_periods;
+  const bool fixed = plan_.fixed;
+  const int max_periods =
+      fixed ? std::max(1, static_cast<int>(std::lround(plan_.duration * frequency)))
+            : settle.max_periods;
   ongoing_.emplace(Ongoing{frequency, samples, max_periods, 0, fixed, prescribed,
                            PeriodTracker(samples, system_.engines().size()), Floors{}, -1});
   Ongoing& o = *ongoing_;
@@ -295,7 +295,7 @@ void FrequencyRun::begin_frequency(double frequency, double amplitude, Frequency
 
 bool FrequencyRun::run_until(int periods) {
   Ongoing& o = *ongoing_;
-  const int min_periods = scene_.excitation.settle.min_periods;
+  const int min_periods = plan_.settle.min_periods;
   while (o.tracker.periods() < std::min(periods, o.max_periods)) {
     run_period();
     if (!o.fixed && o.tracker.periods() - o.settled_from >= min_periods && judge().converged)
@@ -331,13 +331,11 @@ FrequencyPoint FrequencyRun::finish() {
 }
 
 void FrequencyRun::begin_point(double frequency, double amplitude) {
-  const ExcitationSpec& x = scene_.excitation;
-  // A point of one fill (a sine) starts from the bed at rest.
-  begin_frequency(frequency, amplitude, runs_points(x) ? x.start : FrequencyStart::carried);
+  begin_frequency(frequency, amplitude, plan_.start);
 }
 
 FrequencyPoint FrequencyRun::run_point(double frequency, double amplitude) {
-  if (!measures_harmonics(scene_.excitation)) {
+  if (!plan_.harmonics) {
     run_free_decay();
     return {};
   }
@@ -347,14 +345,13 @@ FrequencyPoint FrequencyRun::run_point(double frequency, double amplitude) {
 }
 
 void FrequencyRun::run_free_decay() {
-  const ExcitationSpec& x = scene_.excitation;
-  const double f1 = first_mode();
+  const double f1 = first_mode(), duration = plan_.duration;
   configure(f1, 0.0);
-  system_.set_initial_displacement(x.initial_displacement);
+  system_.set_initial_displacement(plan_.initial_displacement);
   long long done = 0;
-  while (system_.time() < x.duration - 1e-12) {
+  while (system_.time() < duration - 1e-12) {
     step();
-    if (progress_ && ++done % 4096 == 0) progress_(f1, system_.time() / x.duration);
+    if (progress_ && ++done % 4096 == 0) progress_(f1, system_.time() / duration);
   }
 }
 

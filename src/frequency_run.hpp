@@ -10,9 +10,9 @@
 #include <optional>
 #include <string>
 
-#include "io/excitation.hpp"
 #include "io/results.hpp"
 #include "src/harmonics.hpp"
+#include "src/run_plan.hpp"
 #include "src/steady_state.hpp"
 
 namespace pdsim {
@@ -37,15 +37,16 @@ class FrequencyRun {
   // `progress(frequency, fraction of this frequency done)` is called after every period.
   // frequency 0 while the bed settles
   using Progress = std::function<void(double frequency, double fraction)>;
-  explicit FrequencyRun(const Scene& scene, Progress progress = {});
+  // Both are kept by reference: they outlive the run.
+  FrequencyRun(const Scene& scene, const RunPlan& plan, Progress progress = {});
 
-  // Lets the particles settle under gravity, containers at rest (scene.bed); time stands still.
+  // Lets the particles settle under gravity, containers at rest (plan.bed); time stands still.
   BedReport settle_bed();
 
-  // One point of the scene's excitation: `frequency` at the drive's `amplitude` (see
-  // point_amplitude()), started as excitation.start says (a sine from the bed at rest), whole
-  // periods until converged or settle.max_periods (or the fixed number of periods of a `sine`
-  // or a prescribed duration); or the free decay (an empty point; see measures_harmonics()).
+  // One point of the plan: `frequency` at the drive's `amplitude` (PlanPoint), started as
+  // plan.start says, whole periods until converged or settle.max_periods (or the fixed number
+  // of periods of a `sine` or a prescribed duration); or the free decay (an empty point; see
+  // RunPlan::harmonics).
   FrequencyPoint run_point(double frequency, double amplitude);
   // The same in steps, for a driver that looks at a point's fills together: begin_point()
   // starts it (configure, predicted start); run_until(n) runs periods until the point is done
@@ -84,7 +85,7 @@ class FrequencyRun {
 
  private:
   double first_mode() const;
-  // Starts `frequency` (Hz) at the drive's `amplitude` (see point_amplitude()) as `start` says.
+  // Starts `frequency` (Hz) at the drive's `amplitude` as `start` says.
   void begin_frequency(double frequency, double amplitude, FrequencyStart start);
   void run_period();  // one period, not judged
   std::pair<std::vector<std::complex<double>>, SteadyStateCriteria> measured() const;
@@ -112,6 +113,7 @@ class FrequencyRun {
   std::atomic<int> periods_running_{0};
 
   const Scene& scene_;
+  const RunPlan& plan_;
   CoupledSystem system_;
   Progress progress_;
   TimeSeries timeseries_;

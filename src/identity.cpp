@@ -79,7 +79,7 @@ std::string diameters_text(const std::vector<double>& radius) {
 static_assert(sizeof(ContactParams) == 13 * sizeof(double),
               "ContactParams changed: name its new field in scene_identity()");
 
-Identity scene_identity(const Scene& scene) {
+Identity scene_identity(const Scene& scene, const BedSpec& bed) {
   Identity id;
   auto add = [&](std::string name, std::string value) {
     id.emplace_back(std::move(name), std::move(value));
@@ -135,9 +135,9 @@ Identity scene_identity(const Scene& scene) {
     add(at + "particles.diameter", diameters_text(e.radius));
     add(at + "particles.density", exact(e.density) + " kg/m^3");
   }
-  add("bed.settle", scene.bed.settle ? "true" : "false");
-  add("bed.speed", exact(scene.bed.speed) + " m/s");
-  add("bed.max_time", exact(scene.bed.max_time) + " s");
+  add("bed.settle", bed.settle ? "true" : "false");
+  add("bed.speed", exact(bed.speed) + " m/s");
+  add("bed.max_time", exact(bed.max_time) + " s");
   for (std::size_t k = 0; k < scene.dampers.size(); ++k) {
     const DamperScene& d = scene.dampers[k];
     Hash h;

@@ -19,8 +19,9 @@ namespace pdsim {
 using Identity = std::vector<std::pair<std::string, std::string>>;
 
 // Taken from the scene as the engines are made with it (fill 0's particles), not as the deck
-// says, so that a derived constant, a mesh file's contents or a default is in it.
-Identity scene_identity(const Scene& scene);
+// says, so that a derived constant, a mesh file's contents or a default is in it; `bed` says
+// how its fills settle (RunPlan::bed).
+Identity scene_identity(const Scene& scene, const BedSpec& bed);
 
 // One "name = value" line a field, and back.
 std::string identity_text(const Identity& identity);

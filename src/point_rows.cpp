@@ -12,14 +12,14 @@ bool settled(const Stationary& j) {
   return j.converged || j.stationary;
 }
 
-Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const ExcitationSpec& x) {
+Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const RunPlan& plan) {
   std::vector<FillValue> fills;
   for (const FrequencyPoint& p : runs)
     fills.push_back({p.judged.mean, p.judged.amplitude_ci, p.judged.phase_ci, p.judged.batches - 1,
                      settled(p.judged), p.judged.drift});
-  const bool last = static_cast<int>(runs.size()) >= x.settle.max_realisations;
-  Ensemble e = judge_ensemble(fills, x.settle.tolerance, last);
-  if (fixed_duration(x)) {
+  const bool last = static_cast<int>(runs.size()) >= plan.settle.max_realisations;
+  Ensemble e = judge_ensemble(fills, plan.settle.tolerance, last);
+  if (plan.fixed) {
     const bool all = std::all_of(runs.begin(), runs.end(),
                                  [](const FrequencyPoint& p) { return p.judged.converged; });
     e.result = !all                  ? PointResult::none
@@ -54,11 +54,11 @@ std::string ensemble_text(const Ensemble& e, bool prescribed) {
 }
 
 void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fills, int sweep,
-             double amplitude, const ExcitationSpec& x) {
-  const bool prescribed = traits(x.kind).moves_containers;
+             double amplitude, const RunPlan& plan) {
+  const bool prescribed = plan.prescribed;
   std::vector<FrequencyPoint> runs;
   for (const auto& [r, p] : fills) runs.push_back(p);
-  const Ensemble e = judge_fills(runs, x);
+  const Ensemble e = judge_fills(runs, plan);
   const GroupMean& m = e.mean;
   std::vector<RunMean> energy;
   std::vector<double> rms;
@@ -165,7 +165,7 @@ void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fi
     t.amplitude_ci.push_back(g.amplitude.half_width);
     t.phase.push_back(g.phase.mean);
     t.phase_ci.push_back(g.phase.half_width);
-    t.within_tolerance.push_back(g.within(x.settle.tolerance) ? 1 : 0);
+    t.within_tolerance.push_back(g.within(plan.settle.tolerance) ? 1 : 0);
   }
 }
 

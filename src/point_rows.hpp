@@ -19,15 +19,15 @@ bool settled(const Stationary& j);
 // The ensemble of a point's fills (judge_ensemble(); with settle.max_realisations fills no
 // more will come). A fixed run asked for no tolerance: it is a result when every fill's
 // periods are stationary, and adds no fills.
-Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const ExcitationSpec& x);
+Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const RunPlan& plan);
 
 // One line for the log: a point's ensemble, its branches, and what it is.
 std::string ensemble_text(const Ensemble& e, bool prescribed);
 
 // One row of /frf or /prescribed (with its /periods, /frf/fills and /frf/branch_means) from
 // the fills of one point: (fill index, what it measured); the point's sweep (+1 up, -1 down)
-// and drive amplitude (point_amplitude()).
+// and drive amplitude (PlanPoint).
 void add_row(Results& out, const std::vector<std::pair<int, FrequencyPoint>>& fills, int sweep,
-             double amplitude, const ExcitationSpec& x);
+             double amplitude, const RunPlan& plan);
 
 }  // namespace pdsim

@@ -15,6 +15,7 @@
 #include "src/identity.hpp"
 #include "src/coupled_system.hpp"
 #include "src/format.hpp"
+#include "src/run_plan.hpp"
 
 namespace pdsim {
 
@@ -252,7 +253,7 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   Results source;
   // Built on the CPU: a prediction needs no device, whatever the deck's backend.
   const Scene scene = build_scene(deck, 1, Backend::cpu);
-  const Identity damper = scene_identity(scene);
+  const Identity damper = scene_identity(scene, plan_of(deck, scene).bed);
   for (const std::string& file : options.maps) {
     if (!fs::exists(file)) throw InputError(file + ": no such map file");
     Results one = read_results(file);

@@ -1,6 +1,5 @@
 #include "src/provenance.hpp"
 
-#include "io/excitation.hpp"
 #include "pdsim_version.hpp"
 #include "src/format.hpp"
 
@@ -10,6 +9,7 @@ void write_provenance(Results& r, const DeckRecord& deck, const RunFacts& f) {
   auto& t = r.meta_text;
   auto& n = r.meta_numbers;
   const Scene& scene = *f.scene;
+  const RunPlan& plan = *f.plan;
   t["deck"] = deck.text;
   t["deck_path"] = deck.path;
   t["identity"] = f.identity;
@@ -22,13 +22,13 @@ void write_provenance(Results& r, const DeckRecord& deck, const RunFacts& f) {
   t["coupling"] = schemes[static_cast<int>(scene.coupling.scheme)];
   t["dt_basis"] = scene.dt_basis;
   if (!scene.warning.empty()) t["warning"] = scene.warning;
-  if (runs_points(scene.excitation)) t["start"] = start_name(scene.excitation.start);
+  if (plan.ensemble) t["start"] = start_name(plan.start);
   const BedReport& bed = f.bed;
   t["bed"] = !bed.ran          ? "not settled (bed.settle = false, or no gravity or particles)"
-             : f.bed_from_file ? "read from " + scene.bed.file
+             : f.bed_from_file ? "read from " + plan.bed.file
              : bed.settled
                  ? "settled in " + number(bed.time_s) + " s"
-                 : "NOT settled within bed.max_time = " + number(scene.bed.max_time) + " s";
+                 : "NOT settled within bed.max_time = " + number(plan.bed.max_time) + " s";
   n["bed_settled"] = bed.settled ? 1 : 0;
   n["bed_settle_time_s"] = bed.time_s;
   n["bed_speed"] = bed.speed;

@@ -7,6 +7,7 @@
 
 #include "io/results.hpp"
 #include "src/frequency_run.hpp"
+#include "src/run_plan.hpp"
 #include "src/scene.hpp"
 
 namespace pdsim {
@@ -19,10 +20,11 @@ struct DeckRecord {
 
 // What the Driver knows of a run when it writes a file.
 struct RunFacts {
-  const Scene* scene = nullptr;  // fill 0's
-  std::string identity;          // its identity_text()
-  std::string backend, variant;  // "" without particles
-  BedReport bed;                 // fill 0's bed
+  const Scene* scene = nullptr;   // fill 0's
+  const RunPlan* plan = nullptr;  // what it ran
+  std::string identity;           // its identity_text()
+  std::string backend, variant;   // "" without particles
+  BedReport bed;                  // fill 0's bed
   bool bed_from_file = false;
   int fills_min = 1, fills_max = 1;
   std::size_t fills_used = 0;

@@ -61,27 +61,24 @@ struct Plan {
 
 // Runs that can go side by side: the first fills, or with independent frequencies the
 // frequencies (each task runs its fills in turn, Driver::run_independent()).
-int side_by_side_tasks(const Deck& deck) {
-  const ExcitationSpec& x = deck.excitation;
-  const bool swept = runs_points(x);
-  return swept && x.start == FrequencyStart::independent ? static_cast<int>(x.frequencies.size())
-         : swept                                         ? x.settle.realisations
-                                                         : 1;
+int side_by_side_tasks(const RunPlan& plan) {
+  return plan.independent() ? static_cast<int>(plan.points.size()) : plan.first_fills;
 }
 
-int total_threads(const Deck& deck, int threads) {
+// The threads a run may use: the scene's (--threads, else solver.threads), else every core.
+int total_threads(const Scene& scene) {
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  return threads > 0 ? threads : deck.solver.threads > 0 ? deck.solver.threads : cores;
+  return scene.threads > 0 ? scene.threads : cores;
 }
 
-Plan plan_run(const Deck& deck, const Scene& scene, int threads, int jobs) {
-  const int tasks = side_by_side_tasks(deck);
-  const int side_by_side = runs_side_by_side(deck, threads, jobs);
-  const int each = tasks > 1 ? std::max(1, total_threads(deck, threads) / side_by_side) : threads;
+Plan plan_run(const RunPlan& plan, const Scene& scene, int jobs) {
+  const int tasks = side_by_side_tasks(plan);
+  const int side_by_side = runs_side_by_side(plan, scene, jobs);
+  const int each = tasks > 1 ? std::max(1, total_threads(scene) / side_by_side) : scene.threads;
   // The same scene on fewer threads: not built again (a fill of a million spheres takes
   // seconds, and the CUDA probe more).
   Scene first = scene;
-  if (each != threads) {
+  if (each != scene.threads) {
     first.threads = each;
     for (DamperScene& d : first.dampers) d.engine.threads = each;
   }
@@ -98,22 +95,19 @@ DeckRecord deck_record(const Deck& deck) {
 
 }  // namespace
 
-int runs_side_by_side(const Deck& deck, int threads, int jobs) {
-  return std::max(
-      1, std::min(side_by_side_tasks(deck), jobs > 0 ? jobs : total_threads(deck, threads)));
+int runs_side_by_side(const RunPlan& plan, const Scene& scene, int jobs) {
+  return std::max(1, std::min(side_by_side_tasks(plan), jobs > 0 ? jobs : total_threads(scene)));
 }
 
-double simulated_time_bound(const Deck& deck) {
-  const ExcitationSpec& x = deck.excitation;
-  if (!runs_to_steady_state(x))
-    return x.duration * static_cast<double>(std::max<std::size_t>(1, x.frequencies.size()));
+double simulated_time_bound(const RunPlan& plan) {
+  if (!plan.steady) return plan.duration * static_cast<double>(plan.points.size());
   double simulated = 0;
-  for (double f : (x.frequencies.empty() ? std::vector<double>{x.motion.frequency} : x.frequencies))
-    simulated += x.settle.max_realisations * x.settle.max_periods / f;
+  for (const PlanPoint& p : plan.points)
+    simulated += plan.settle.max_realisations * plan.settle.max_periods / p.frequency;
   return simulated;
 }
 
-double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads) {
+double memory_estimate_mib(const RunPlan& plan, const Scene& scene) {
   double particles = 0;
   for (const DamperScene& d : scene.dampers) particles += double(d.engine.particles.size());
   // Measured (peak resident size, `/usr/bin/time -v`): a fill of 100,000 and of 300,000 spheres
@@ -121,19 +115,19 @@ double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads) {
   // further fill adds 1.9 KiB (its kept bed); 1,000,000 spheres in two fills at 6.4 KiB, side by
   // side or not (validation/results/memory.md). An engine for each run side by side, and a
   // kept bed for every fill a point may grow to.
-  const int engines = runs_side_by_side(deck, threads, 0);
-  const int beds = std::max(engines, most_fills(deck.excitation));
+  const int engines = runs_side_by_side(plan, scene, 0);
+  const int beds = std::max(engines, plan.most_fills);
   double mib =
       std::max(256.0, 64.0 + particles / 1024.0 * (5.0 * engines + 2.0 * (beds - engines)));
   // Particle snapshots are held until the file is written: 11 numbers a particle each.
-  if (deck.output.particles_every > 0)
-    mib += simulated_time_bound(deck) / deck.output.particles_every * particles * 88.0 / (1 << 20);
+  if (plan.output.particles_every > 0)
+    mib += simulated_time_bound(plan) / plan.output.particles_every * particles * 88.0 / (1 << 20);
   // A CUDA context holds a few hundred MiB of host memory (allowed for, not measured here).
   if (scene.backend == Backend::cuda) mib += 1024.0;
   return mib;
 }
 
-std::string memory_shortfall(const Deck& deck, const Scene& scene, int threads) {
+std::string memory_shortfall(const RunPlan& plan, const Scene& scene) {
   std::ifstream info("/proc/meminfo");
   double available_kib = 0;
   for (std::string key; info >> key;) {
@@ -143,7 +137,7 @@ std::string memory_shortfall(const Deck& deck, const Scene& scene, int threads) 
     }
     info.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
   }
-  const double need = memory_estimate_mib(deck, scene, threads), have = available_kib / 1024;
+  const double need = memory_estimate_mib(plan, scene), have = available_kib / 1024;
   if (!(have > 0) || need <= have) return "";
   return "the run may need up to " + number(need, 3) + " MiB, and " + number(have, 3) +
          " MiB are available now: expect swapping or an out-of-memory kill; fewer particles or "
@@ -151,13 +145,15 @@ std::string memory_shortfall(const Deck& deck, const Scene& scene, int threads) 
 }
 
 Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
-  Plan plan = plan_run(deck, scene, scene.threads, jobs);
-  Driver driver(deck_record(deck), read_bed_file(scene, deck.where("bed.file")),
-                std::move(plan.first), plan.make_scene, plan.jobs, quiet, "");
+  RunPlan run = plan_of(deck, scene);
+  Plan plan = plan_run(run, scene, jobs);
+  std::optional<Results> beds = read_bed_file(scene, run, deck.where("bed.file"));
+  Driver driver(deck_record(deck), std::move(run), std::move(beds), std::move(plan.first),
+                plan.make_scene, plan.jobs, quiet, "");
   return driver.run({}, 0);
 }
 
-std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene) {
+std::string changes_since(const Results& saved, const Deck& deck, const Identity* now) {
   const auto kept = [](const std::string& key) {
     return key == "title" || key == "solver.threads" || key.rfind("cluster.", 0) == 0;
   };
@@ -169,9 +165,8 @@ std::string changes_since(const Results& saved, const Deck& deck, const Scene* s
       out += (out.empty() ? "" : "; ") + c.key + ": " + c.before + " then, " + c.after + " now";
   // What the deck's text does not hold: a mesh file's triangles, a default of this pdsim.
   const auto id = saved.meta_text.find("identity");
-  if (scene && out.empty() && id != saved.meta_text.end())
-    out = identity_difference(parse_identity(id->second), scene_identity(*scene),
-                              IdentityScope::bed, "then", "now");
+  if (now && out.empty() && id != saved.meta_text.end())
+    out = identity_difference(parse_identity(id->second), *now, IdentityScope::bed, "then", "now");
   return out;
 }
 
@@ -216,21 +211,22 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   }
   const Scene scene = build_scene(deck, options.threads, options.backend);
   if (!scene.warning.empty()) std::cerr << "warning: " << scene.warning << "\n";
-  if (const std::string short_of = memory_shortfall(deck, scene, options.threads);
-      !short_of.empty())
+  const RunPlan run = plan_of(deck, scene);
+  if (const std::string short_of = memory_shortfall(run, scene); !short_of.empty())
     std::cerr << "warning: " << short_of << "\n";
-  Plan plan = plan_run(deck, scene, options.threads, options.jobs);
+  Plan plan = plan_run(run, scene, options.jobs);
   // A resumed run's checkpoint holds its first fills' beds: bed.file is not read (as before
   // the first point, when it was).
-  Driver driver(deck_record(deck),
-                options.resume ? std::nullopt : read_bed_file(scene, deck.where("bed.file")),
-                std::move(plan.first), plan.make_scene, plan.jobs, options.quiet,
-                path + ".blowup.csv");
+  std::optional<Results> beds =
+      options.resume ? std::nullopt : read_bed_file(scene, run, deck.where("bed.file"));
+  const Identity identity = scene_identity(scene, run.bed);
+  Driver driver(deck_record(deck), run, std::move(beds), std::move(plan.first), plan.make_scene,
+                plan.jobs, options.quiet, path + ".blowup.csv");
   if (options.resume) {
     if (!fs::exists(partial))
       throw InputError(partial + ": nothing to resume (no checkpoint of an interrupted run)");
     Results saved = read_results(partial);
-    if (const std::string changed = changes_since(saved, deck, &scene); !changed.empty())
+    if (const std::string changed = changes_since(saved, deck, &identity); !changed.empty())
       throw InputError(partial + ": the deck changed since the interrupted run (" + changed +
                        "); run it anew without --resume");
     if (saved.checkpoint.empty())
@@ -263,7 +259,7 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
     return {partial, "stopped after " + std::to_string(driver.finished()) +
                          " frequencies as asked; continue with --resume"};
   write_results(path, results, true, options.force);
-  std::string summary = summary_line(results, path, deck);
+  std::string summary = summary_line(results, path, run);
   if (results.particles) {
     write_xdmf(path, *results.particles);
     summary += "; particles: " + xdmf_path(path) + " (ParaView)";

@@ -7,6 +7,8 @@
 
 #include "io/deck.hpp"
 #include "io/results.hpp"
+#include "src/identity.hpp"
+#include "src/run_plan.hpp"
 #include "src/scene.hpp"
 
 namespace pdsim {
@@ -35,22 +37,23 @@ void check_output_path(const std::string& path);
 // A file beside the deck's output named for it: "OUT.h5" -> "OUT<suffix>" ("_map.h5").
 std::string output_beside(const Deck& deck, const std::string& suffix);
 
-// How many runs of the deck (fills, or independent frequencies) go side by side on `threads`
-// threads (0: solver.threads, else every core), `jobs` at most (0: one per thread).
-int runs_side_by_side(const Deck& deck, int threads, int jobs);
-// The simulated time a run of the deck takes at most, s (every fill to settle.max_periods).
-double simulated_time_bound(const Deck& deck);
-// Memory a run of the deck needs on `threads` threads, MiB (generous: for a scheduler's request).
-double memory_estimate_mib(const Deck& deck, const Scene& scene, int threads);
+// How many runs of the plan (fills, or independent frequencies) go side by side on the scene's
+// threads (0: every core), `jobs` at most (0: one per thread).
+int runs_side_by_side(const RunPlan& plan, const Scene& scene, int jobs);
+// The simulated time a run of the plan takes at most, s (every fill to settle.max_periods).
+double simulated_time_bound(const RunPlan& plan);
+// Memory a run of the plan needs on the scene's threads, MiB (generous: for a scheduler's
+// request).
+double memory_estimate_mib(const RunPlan& plan, const Scene& scene);
 // "" when this machine has that memory available now (/proc/meminfo), else a warning that says
 // how much the run may need and how much there is.
-std::string memory_shortfall(const Deck& deck, const Scene& scene, int threads);
+std::string memory_shortfall(const RunPlan& plan, const Scene& scene);
 
 // Why `saved` (a file an earlier run of `deck` wrote: a checkpoint, a map's run) cannot be
-// continued or kept by `deck` and its `scene` (none: the keys alone) now, naming each changed
-// key and compiled field (src/identity.hpp); "" when nothing changed but keys that cannot alter
-// finished points (title, solver.threads, [cluster]: io/decks.md).
-std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene);
+// continued or kept by `deck`, whose scene and bed are `now` (none: the keys alone), naming
+// each changed key and compiled field (src/identity.hpp); "" when nothing changed but keys that
+// cannot alter finished points (title, solver.threads, [cluster]: io/decks.md).
+std::string changes_since(const Results& saved, const Deck& deck, const Identity* now);
 
 // Runs the deck to completion and writes its results. Throws InputError for user errors
 // (existing output without --force, resume mismatch) and SimulationError for blow-ups.

@@ -182,7 +182,7 @@ Locate locate(const Deck& deck) {
 // run would overflow on: a period's steps in an int (FrequencyRun::configure), and structural
 // matrices that stay finite at every frequency of the deck.
 void check_feasible(const Deck& deck, const Scene& s) {
-  const std::vector<double>& frequencies = s.frequencies;
+  const std::vector<double> frequencies = run_frequencies(deck.excitation);
   const std::string f_key =
       frequency_key(deck.excitation, deck.positions.count("excitation.frequencies") > 0);
   const std::string dt_key = deck.solver.dt > 0 ? "solver.dt" : f_key;
@@ -301,8 +301,9 @@ constexpr double kNonsmoothLimit = 0.5;  // beyond half a radius a step contacts
 double container_speed_bound(const Deck& deck, const Scene& s) {
   const ExcitationSpec& x = deck.excitation;
   double v = 0;
-  for (std::size_t k = 0; k < s.frequencies.size(); ++k) {
-    const double omega = 2 * kPi * s.frequencies[k];
+  const std::vector<double> frequencies = run_frequencies(x);
+  for (std::size_t k = 0; k < frequencies.size(); ++k) {
+    const double omega = 2 * kPi * frequencies[k];
     const double amplitude = !x.amplitudes.empty()                  ? x.amplitudes[k]
                              : x.kind == ExcitationKind::prescribed ? x.motion.amplitude
                                                                     : x.amplitude;
@@ -479,7 +480,6 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
                 "contacts are under-resolved and results may be shifted or blow up");
   }
 
-  s.frequencies = run_frequencies(deck.excitation);
   if (deck.structure.kind != StructureKind::none) {
     s.structure = build_structure(deck);
     try {
@@ -491,7 +491,8 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   if (contact.nonsmooth && !deck.dampers.empty()) nonsmooth_step(deck, s, r_min);
   if (deck.dampers.empty()) {
     // Bare structure: the exact propagator has no step limit; sample 256 steps a period.
-    const double f_top = s.highest_frequency() > 0 ? s.highest_frequency() : 100.0;
+    const std::vector<double> f = run_frequencies(deck.excitation);
+    const double f_top = f.empty() ? 100.0 : *std::max_element(f.begin(), f.end());
     s.dt = deck.solver.dt > 0 ? deck.solver.dt : 1.0 / (256 * f_top);
     s.dt_basis = deck.solver.dt > 0 ? "given in the deck" : "1/256 of the shortest period";
   }
@@ -517,18 +518,8 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   check_feasible(deck, s);
   for (auto& d : s.dampers) d.engine.dt = s.dt;
   s.structure_spec = deck.structure;
-  s.excitation = deck.excitation;
   s.coupling = deck.coupling;
-  s.bed = deck.bed;
-  // Rigid contacts approaching slower than the rest speed end at rest, and velocities are met
-  // to the solver's tolerance: a bed is settled once no particle moves faster than their sum
-  // (measured on the Saeki bed: at the default 1e-3 m/s it jittered above it for 6 s; at the
-  // rest speed alone, 7.8e-3 m/s at dt 4e-4 s, its fastest sphere still moved at 9.5e-3 m/s).
-  if (contact.nonsmooth && !s.dampers.empty()) {
-    const NonsmoothParams& p = *s.dampers[0].engine.nonsmooth;
-    s.bed.speed = std::max(s.bed.speed, p.rest_speed + p.tolerance);
-  }
-  s.output = deck.output;
+  s.motion_axis = deck.excitation.motion.axis;
   s.gravity = deck.gravity;
   return s;
 }

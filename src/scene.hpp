@@ -1,8 +1,8 @@
-// The scene: the deck compiled into what the solver runs (the built structure, the frequency
-// list, particle masses, contact constants, time step, kernel variant, initial particle
-// positions), with the physical cross-checks that need derived quantities (particles fit, dt
-// below the stability limit). deck -> scene -> solver: the coupled system and the frequency
-// runs take only the scene.
+// The scene: the deck compiled into what the solver runs (the built structure, particle
+// masses, contact constants, time step, kernel variant, initial particle positions), with the
+// physical cross-checks that need derived quantities (particles fit, dt below the stability
+// limit at the deck's frequencies). deck -> scene + run plan (src/run_plan.hpp) -> solver: the
+// coupled system takes only the scene, the frequency runs the scene and the plan.
 #pragma once
 
 #include <algorithm>
@@ -42,18 +42,12 @@ struct Scene {
   std::string dt_basis;      // how dt was chosen
   int threads = 0;
 
-  // What the run does, as the deck says, checked.
+  // The host, as the deck says, checked.
   StructureSpec structure_spec;              // kind none: the containers' motion is prescribed
   std::optional<LinearStructure> structure;  // built once, here (with a damper at each mount)
   std::vector<double> natural_hz;            // the structure's natural frequencies, ascending
-  std::vector<double> frequencies;           // Hz, the excitation's, in the order they run
-  double highest_frequency() const {         // Hz, 0 when the excitation has none
-    return frequencies.empty() ? 0.0 : *std::max_element(frequencies.begin(), frequencies.end());
-  }
-  ExcitationSpec excitation;
+  Vec3 motion_axis{1, 0, 0};                 // kind none: the containers move along it (unit)
   CouplingSpec coupling;
-  BedSpec bed;
-  OutputSpec output;
   std::optional<Vec3> gravity;
 };
 

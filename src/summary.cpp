@@ -24,11 +24,11 @@ std::string listed(const std::vector<double>& frequency, const std::vector<int>&
 
 }  // namespace
 
-std::string summary_line(const Results& r, const std::string& path, const Deck& deck) {
+std::string summary_line(const Results& r, const std::string& path, const RunPlan& plan) {
   std::ostringstream s;
   s.precision(4);
-  const bool fixed = fixed_duration(deck.excitation);
-  if (!r.frf.frequency.empty() && sweeps_frf(deck.excitation)) {
+  const bool fixed = plan.fixed;
+  if (!r.frf.frequency.empty() && plan.frf) {
     const FrfTable& f = r.frf;
     int results = 0, branched = 0;
     for (int k : f.result) results += k > 0, branched += k == 2;
@@ -68,7 +68,7 @@ std::string summary_line(const Results& r, const std::string& path, const Deck& 
     s << "prescribed motion: " << p.frequency.size()
       << (p.frequency.size() == 1 ? " frequency" : " frequencies");
     if (fixed)
-      s << ", " << deck.excitation.duration << " s each";
+      s << ", " << plan.duration << " s each";
     else
       s << ", " << count << " results";
     if (found)

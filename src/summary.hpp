@@ -4,11 +4,12 @@
 
 #include <string>
 
-#include "io/deck.hpp"
 #include "io/results.hpp"
+#include "src/run_plan.hpp"
 
 namespace pdsim {
 
-std::string summary_line(const Results& r, const std::string& path, const Deck& deck);
+// `plan`: what the run ran.
+std::string summary_line(const Results& r, const std::string& path, const RunPlan& plan);
 
 }  // namespace pdsim

@@ -300,7 +300,8 @@ std::vector<Deck> checked_points(const Deck& deck, int threads, std::optional<Ba
     try {
       const Scene scene = build_scene(points.back(), threads, backend);
       if (memory_mib)
-        *memory_mib = std::max(*memory_mib, memory_estimate_mib(points.back(), scene, threads));
+        *memory_mib =
+            std::max(*memory_mib, memory_estimate_mib(plan_of(points.back(), scene), scene));
     } catch (const InputError& e) {
       throw InputError(std::string(e.what()) + " (sweep point " + std::to_string(k) + ": " +
                        deck.sweep.describe(k) + ")");

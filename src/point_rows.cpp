@@ -31,6 +31,37 @@ Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const RunPlan& pla
   return e;
 }
 
+std::string point_text(const RunPlan& plan, std::size_t s) {
+  bool both = false;
+  for (const PlanPoint& p : plan.points) both = both || p.sweep != plan.points[0].sweep;
+  const PlanPoint& p = plan.points[s];
+  const std::string amplitude =
+      plan.amplitude_steps ? ", amplitude " + number(p.amplitude) + (plan.prescribed ? " m" : "")
+                           : "";
+  return "f = " + number(p.frequency) + " Hz" + amplitude +
+         (both ? (p.sweep > 0 ? " (up)" : " (down)") : "");
+}
+
+std::string fill_text(const FrequencyPoint& p, std::size_t r, const RunPlan& plan) {
+  if (!plan.harmonics)
+    return "free decay from " + number(plan.initial_displacement) + " m: " + number(plan.duration) +
+           " s";
+  std::ostringstream s;
+  s.precision(4);
+  s << "f = " << p.frequency << " Hz";
+  if (plan.most_fills > 1) s << " (fill " << r + 1 << ")";
+  s << ": " << amplitude_text(std::abs(p.judged.mean), p.judged.amplitude_ci, plan.prescribed)
+    << ", " << p.judged.periods << " periods (" << p.judged.discarded << " warm-up)";
+  if (plan.fixed)
+    s << ", fixed duration" << (p.judged.converged ? "" : ", " + p.judged.reason);
+  else
+    s << (p.judged.by_spread   ? ", settled to a third of the fills' spread"
+          : p.judged.converged ? ", settled"
+          : settled(p.judged)  ? ", held still (" + p.judged.reason + ")"
+                               : ", NOT settled: " + p.judged.reason);
+  return s.str();
+}
+
 std::string ensemble_text(const Ensemble& e, bool prescribed) {
   std::ostringstream s;
   s.precision(4);

@@ -21,6 +21,12 @@ bool settled(const Stationary& j);
 // periods are stationary, and adds no fills.
 Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const RunPlan& plan);
 
+// A point's name in the log: "f = 15 Hz", with its amplitude where the points' differ and its
+// sweep where both ran.
+std::string point_text(const RunPlan& plan, std::size_t s);
+// One line for the log: what fill r measured at a point (a free decay: its duration).
+std::string fill_text(const FrequencyPoint& p, std::size_t r, const RunPlan& plan);
+
 // One line for the log: a point's ensemble, its branches, and what it is.
 std::string ensemble_text(const Ensemble& e, bool prescribed);
 

@@ -236,8 +236,8 @@ std::optional<Results> finished_run(const Deck& run) {
   std::error_code ignored;
   if (!fs::exists(run.output.file, ignored)) return std::nullopt;
   Results done = read_results(run.output.file);
-  if (const std::string changed = changes_since(done, run, nullptr); !changed.empty())
-    throw InputError(run.output.file + ": a run of another map (the deck changed: " + changed +
+  if (const std::string changed = changes_since(done, run); !changed.empty())
+    throw InputError(run.output.file + ": a run of another map (" + changed +
                      "); run the map anew with --force");
   return done;
 }
@@ -390,9 +390,8 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   map.meta_numbers = results.front().meta_numbers;
   map.meta_text["deck"] = deck.text;
   map.meta_text["deck_path"] = deck.path;
-  const Scene scene = build_scene(runs.front());
   map.meta_text["identity"] =
-      identity_text(scene_identity(scene, plan_of(runs.front(), scene).bed));
+      identity_text(deck_identity(runs.front(), build_scene(runs.front(), 1, Backend::cpu)));
   map.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
   map.meta_text.erase("coupling");  // a prescribed motion couples nothing
   for (Results& r : results)

@@ -253,7 +253,7 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   Results source;
   // Built on the CPU: a prediction needs no device, whatever the deck's backend.
   const Scene scene = build_scene(deck, 1, Backend::cpu);
-  const Identity damper = scene_identity(scene, plan_of(deck, scene).bed);
+  const Identity damper = deck_identity(deck, scene);
   for (const std::string& file : options.maps) {
     if (!fs::exists(file)) throw InputError(file + ": no such map file");
     Results one = read_results(file);

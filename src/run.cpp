@@ -153,7 +153,11 @@ Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
   return driver.run({}, 0);
 }
 
-std::string changes_since(const Results& saved, const Deck& deck, const Identity* now) {
+Identity deck_identity(const Deck& deck, const Scene& scene) {
+  return scene_identity(scene, plan_of(deck, scene).bed);
+}
+
+std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene) {
   const auto kept = [](const std::string& key) {
     return key == "title" || key == "solver.threads" || key.rfind("cluster.", 0) == 0;
   };
@@ -165,8 +169,11 @@ std::string changes_since(const Results& saved, const Deck& deck, const Identity
       out += (out.empty() ? "" : "; ") + c.key + ": " + c.before + " then, " + c.after + " now";
   // What the deck's text does not hold: a mesh file's triangles, a default of this pdsim.
   const auto id = saved.meta_text.find("identity");
-  if (now && out.empty() && id != saved.meta_text.end())
-    out = identity_difference(parse_identity(id->second), *now, IdentityScope::bed, "then", "now");
+  if (!out.empty() || id == saved.meta_text.end()) return out;
+  // Neither threads nor the backend change what the identity holds.
+  const Identity now =
+      scene ? deck_identity(deck, *scene) : deck_identity(deck, build_scene(deck, 1, Backend::cpu));
+  return identity_difference(parse_identity(id->second), now, IdentityScope::bed, "then", "now");
   return out;
 }
 
@@ -219,14 +226,13 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
   // the first point, when it was).
   std::optional<Results> beds =
       options.resume ? std::nullopt : read_bed_file(scene, run, deck.where("bed.file"));
-  const Identity identity = scene_identity(scene, run.bed);
   Driver driver(deck_record(deck), run, std::move(beds), std::move(plan.first), plan.make_scene,
                 plan.jobs, options.quiet, path + ".blowup.csv");
   if (options.resume) {
     if (!fs::exists(partial))
       throw InputError(partial + ": nothing to resume (no checkpoint of an interrupted run)");
     Results saved = read_results(partial);
-    if (const std::string changed = changes_since(saved, deck, &identity); !changed.empty())
+    if (const std::string changed = changes_since(saved, deck, &scene); !changed.empty())
       throw InputError(partial + ": the deck changed since the interrupted run (" + changed +
                        "); run it anew without --resume");
     if (saved.checkpoint.empty())

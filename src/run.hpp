@@ -49,11 +49,16 @@ double memory_estimate_mib(const RunPlan& plan, const Scene& scene);
 // how much the run may need and how much there is.
 std::string memory_shortfall(const RunPlan& plan, const Scene& scene);
 
-// Why `saved` (a file an earlier run of `deck` wrote: a checkpoint, a map's run) cannot be
-// continued or kept by `deck`, whose scene and bed are `now` (none: the keys alone), naming
-// each changed key and compiled field (src/identity.hpp); "" when nothing changed but keys that
-// cannot alter finished points (title, solver.threads, [cluster]: io/decks.md).
-std::string changes_since(const Results& saved, const Deck& deck, const Identity* now);
+// The identity (src/identity.hpp) of `deck`'s scene, built from it, and of its bed.
+Identity deck_identity(const Deck& deck, const Scene& scene);
+
+// Why `saved` (a file an earlier run of `deck` wrote: a checkpoint, a map's run, a sweep's
+// point) cannot be continued or kept by `deck` now, naming each changed key and, where the keys
+// are the same, each changed field of the compiled identity (a mesh file's triangles, a default
+// of this pdsim), `scene` being the deck's (none: built here when needed); "" when nothing
+// changed but keys that cannot alter finished points (title, solver.threads, [cluster]:
+// io/decks.md).
+std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene = nullptr);
 
 // Runs the deck to completion and writes its results. Throws InputError for user errors
 // (existing output without --force, resume mismatch) and SimulationError for blow-ups.

@@ -193,7 +193,7 @@ Point sweep_point_at(const Deck& deck, const std::string& folder, int k, Deck po
 void read_state(Point& p) {
   std::error_code ignored;
   if (fs::exists(p.file, ignored)) {
-    const std::string changed = changes_since(read_results(p.file), p.deck, nullptr);
+    const std::string changed = changes_since(read_results(p.file), p.deck);
     p.kept = changed.empty();
     if (!p.kept)
       p.code = 2, p.detail = "its file was run from another deck or point (" + changed + ")";
@@ -441,8 +441,9 @@ int run_sweep(const Deck& deck, const SweepOptions& o) {
       if (!o.resume)
         throw InputError(p.file +
                          ": exists; use --resume to keep finished points or --force to rerun them");
-      if (read_results(p.file).meta_text.at("deck") != p.deck.text)
-        throw InputError(p.file + ": was run from another deck or point; use --force to rerun it");
+      if (const std::string changed = changes_since(read_results(p.file), p.deck); !changed.empty())
+        throw InputError(p.file + ": was run from another deck or point (" + changed +
+                         "); use --force to rerun it");
       p.kept = true;
     }
     p.resume = o.resume && !p.kept && fs::exists(p.file + ".partial");

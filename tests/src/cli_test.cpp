@@ -384,6 +384,36 @@ TEST_CASE("sweep --status and --collect say which points are finished, failed or
   CHECK(rows.find("\n3,2.0,not run,p003.h5\n") != std::string::npos);
 }
 
+// A sweep's points and a map's runs finished earlier are kept only while they are what the deck
+// makes now: a new title is taken as it is; a mesh edited since, which the deck's text does not
+// show, is refused naming the container.
+TEST_CASE("sweep and map --resume: finished files of a mesh edited since are refused by name") {
+  using pdsim::stl_files::ascii;
+  Sandbox box;
+  const std::string stl = ascii(pdsim::stl_files::box(30, 30, 30), "resumed.stl");
+  const std::string sweep = mesh_deck(stl) + "[sweep]\n\"excitation.duration\" = [0.05, 0.06]\n";
+  const std::string map =
+      mesh_deck(stl) + "[map]\namplitudes = [0.001]\nfrequencies = [20.0]\nduration = 0.05\n";
+  std::ofstream(box.dir / "s.toml") << sweep;
+  std::ofstream(box.dir / "m.toml") << map;
+  std::string log;
+  REQUIRE(box.pdsim("sweep s.toml --jobs 1", &log) == 0);
+  REQUIRE(box.pdsim("map m.toml --jobs 1 --quiet", &log) == 0);
+  std::ofstream(box.dir / "s.toml") << "title = \"renamed\"\n" << sweep;
+  CHECK(box.pdsim("sweep s.toml --resume --jobs 1", &log) == 0);
+  CHECK(log.find("point 2/2 (excitation.duration = 0.06): finished earlier, kept") !=
+        std::string::npos);
+  ascii(pdsim::stl_files::box(30, 30, 40), "resumed.stl");  // 10 mm taller
+  fs::remove(box.dir / "mesh_map.h5");  // as if interrupted: its one run finished
+  for (const char* command : {"sweep s.toml --resume --jobs 1", "map m.toml --resume --jobs 1"}) {
+    CAPTURE(command);
+    CHECK(box.pdsim(command, &log) == 1);
+    CAPTURE(log);
+    CHECK(log.find("damper[0].container: mesh triangles 144 numbers ") != std::string::npos);
+    CHECK(log.find(" then, mesh triangles 144 numbers ") != std::string::npos);
+  }
+}
+
 // Ranks of a launcher (here its environment alone, as mpirun or srun sets it) share the points:
 // each runs its own, the files are those of a local sweep, and the last rank writes the summary.
 TEST_CASE("sweep --ranks: two ranks give the points of one local sweep") {

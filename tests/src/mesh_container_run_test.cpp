@@ -118,16 +118,14 @@ TEST_CASE("a mesh edited since a run: resuming it is refused naming the containe
   const Deck d = parse_deck(deck(mesh_table(stl), 1), "mesh.toml");
   Results saved;
   saved.meta_text["deck"] = d.text;
-  const Scene first = build_scene(d);
-  saved.meta_text["identity"] = identity_text(scene_identity(first, plan_of(d, first).bed));
-  CHECK(changes_since(saved, d, nullptr).empty());
+  saved.meta_text["identity"] = identity_text(deck_identity(d, build_scene(d)));
+  CHECK(changes_since(saved, d).empty());
   ascii(box(0.04, 0.04, 0.05, {-0.02, -0.02, -0.025}), "edited.stl");  // 10 mm taller
   const Deck again = parse_deck(deck(mesh_table(stl), 1), "mesh.toml");
   const Scene scene = build_scene(again);
-  const Identity now = scene_identity(scene, plan_of(again, scene).bed);
-  const std::string changed = changes_since(saved, again, &now);
+  const std::string changed = changes_since(saved, again, &scene);
   CAPTURE(changed);
   CHECK(changed.rfind("damper[0].container: mesh triangles 144 numbers ", 0) == 0);
   CHECK(changed.find(" then, mesh triangles 144 numbers ") != std::string::npos);
-  CHECK(changes_since(saved, again, nullptr).empty());  // the text alone cannot tell
+  CHECK(changes_since(saved, again) == changed);  // the scene built from the deck tells alike
 }

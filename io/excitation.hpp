@@ -1,7 +1,8 @@
-// What each excitation kind is, declared once, in ExcitationKind's order: its deck name and how
-// a run treats it. The code asks these questions of a kind, not which kind it is. Adding a
-// kind: an entry here, its keys in read_excitation() (io/deck.cpp), its drive
-// (src/coupled_system.cpp) and, for a new way to run a point, src/frequency_run.cpp.
+// What each excitation kind is, declared once, in ExcitationKind's order: its deck name, how a
+// run treats it, and the reader of its keys. The code asks these questions of a kind, not which
+// kind it is. Adding a kind: its file in io/excitations/ (its keys), its entry and reader here,
+// its name in ExcitationKind (io/specs.hpp); a new drive is src/coupled_system.cpp's, a new way
+// to run a point src/frequency_run.cpp's.
 #pragma once
 
 #include <algorithm>
@@ -10,6 +11,16 @@
 #include "io/specs.hpp"
 
 namespace pdsim {
+
+namespace deck_keys {
+class Table;  // io/deck_table.hpp
+}
+
+// Each kind's keys, read into `e` (its kind set), in its own file of io/excitations/.
+void read_stepped_sine(const deck_keys::Table& t, ExcitationSpec& e);
+void read_sine(const deck_keys::Table& t, ExcitationSpec& e);
+void read_free_decay(const deck_keys::Table& t, ExcitationSpec& e);
+void read_prescribed(const deck_keys::Table& t, ExcitationSpec& e);
 
 struct ExcitationTraits {
   ExcitationKind kind;
@@ -22,14 +33,25 @@ struct ExcitationTraits {
   // A point's periods: kFixed, those of excitation.duration; kSteady, until the steady state
   // (kFixedIfDuration: kFixed when a duration is given).
   enum Periods { kNone, kFixed, kSteady, kFixedIfDuration } periods;
+  void (*read)(const deck_keys::Table& t, ExcitationSpec& e);
 };
 
 inline constexpr ExcitationTraits kExcitations[] = {
-    {ExcitationKind::stepped_sine, "stepped_sine", true, false, ExcitationTraits::kSteady},
-    {ExcitationKind::sine, "sine", false, false, ExcitationTraits::kFixed},
-    {ExcitationKind::free_decay, "free_decay", false, false, ExcitationTraits::kNone},
-    {ExcitationKind::prescribed, "prescribed", true, true, ExcitationTraits::kFixedIfDuration},
+    {ExcitationKind::stepped_sine, "stepped_sine", true, false, ExcitationTraits::kSteady,
+     read_stepped_sine},
+    {ExcitationKind::sine, "sine", false, false, ExcitationTraits::kFixed, read_sine},
+    {ExcitationKind::free_decay, "free_decay", false, false, ExcitationTraits::kNone,
+     read_free_decay},
+    {ExcitationKind::prescribed, "prescribed", true, true, ExcitationTraits::kFixedIfDuration,
+     read_prescribed},
 };
+
+constexpr bool in_kind_order() {
+  for (std::size_t k = 0; k < std::size(kExcitations); ++k)
+    if (static_cast<std::size_t>(kExcitations[k].kind) != k) return false;
+  return true;
+}
+static_assert(in_kind_order(), "kExcitations: one entry per ExcitationKind, in its order");
 
 inline const ExcitationTraits& traits(ExcitationKind kind) {
   return kExcitations[static_cast<int>(kind)];
@@ -78,25 +100,11 @@ inline bool sweeps_frf(const ExcitationSpec& x) {
   return traits(x.kind).points && !traits(x.kind).moves_containers;
 }
 
-// The frequencies x runs, Hz, in order: a sine's one frequency, else the list (prescribed
-// motion without one: the reader puts the motion's frequency there).
-inline std::vector<double> run_frequencies(const ExcitationSpec& x) {
-  return x.kind == ExcitationKind::sine ? std::vector<double>{x.frequency} : x.frequencies;
-}
-
 // The drive amplitude of point k: a prescribed motion's (m), else excitation.amplitude (N, m or
 // m/s^2 as excitation.input says).
 inline double point_amplitude(const ExcitationSpec& x, std::size_t k) {
   if (!x.amplitudes.empty()) return x.amplitudes.at(k);
   return traits(x.kind).moves_containers ? x.motion.amplitude : x.amplitude;
-}
-
-// The deck key those frequencies came from, for messages; `list_given`: the deck has
-// excitation.frequencies.
-inline const char* frequency_key(const ExcitationSpec& x, bool list_given) {
-  return x.kind == ExcitationKind::sine ? "excitation.frequency"
-         : list_given                   ? "excitation.frequencies"
-                                        : "excitation.motion.frequency";
 }
 
 }  // namespace pdsim

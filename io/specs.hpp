@@ -76,14 +76,15 @@ struct ExcitationSpec {
   ExcitationKind kind = ExcitationKind::sine;
   ExcitationInput input = ExcitationInput::force;
   double amplitude = 0;             // N, m or m/s^2 according to `input`
-  std::vector<double> frequencies;  // Hz, in the order they are run (prescribed: never empty)
-  std::vector<int> sweeps;          // per frequency: +1 sweeping up, -1 down (direction "both":
-                                    // the list up, then down from the top again)
-  std::vector<double> amplitudes;   // per frequency when the points' amplitudes differ (pdsim
-                                    // map's amplitude steps), else `amplitude` / motion.amplitude
+  std::vector<double> frequencies;  // Hz, in the order they are run (a sine's one; a free
+                                    // decay's none)
+  std::string frequencies_key = "excitation.frequencies";  // the deck key they came from
+  std::vector<int> sweeps;         // per frequency: +1 sweeping up, -1 down (direction "both":
+                                   // the list up, then down from the top again)
+  std::vector<double> amplitudes;  // per frequency when the points' amplitudes differ (pdsim
+                                   // map's amplitude steps), else `amplitude` / motion.amplitude
   SettleSpec settle;
   FrequencyStart start = FrequencyStart::predicted;  // stepped_sine (prescribed: carried)
-  double frequency = 0;                              // Hz, `sine`
   double duration = 0;                               // s, `sine`, `free_decay`, `prescribed`
   double initial_displacement = 0;                   // m, `free_decay`
   MotionSpec motion;                                 // `prescribed`

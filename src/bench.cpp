@@ -389,7 +389,7 @@ Deck exchange_deck(bool beam, CouplingScheme scheme, IntegratorKind integrator) 
   d.coupling.scheme = scheme;
   d.excitation.kind = ExcitationKind::sine;
   d.excitation.amplitude = 1;
-  d.excitation.frequency = 15;
+  d.excitation.frequencies = {15};
   return d;
 }
 
@@ -441,9 +441,9 @@ void bench_saeki(const BenchOptions& o, Backend backend) {
   // The example as the user runs it, driven at one frequency below resonance.
   Deck deck = parse_deck(kSaekiDeck, "examples/saeki_250.toml (compiled in)");
   deck.excitation.kind = ExcitationKind::sine;
-  deck.excitation.frequency = 13.0;
+  deck.excitation.frequencies = {13.0};
   const Scene scene = build_scene(deck, 1, backend);
-  const double dt = scene.dt, frequency = deck.excitation.frequency;
+  const double dt = scene.dt, frequency = deck.excitation.frequencies.front();
   const RunPlan plan = plan_of(deck, scene);
   FrequencyRun run(scene, plan);  // the bed settles in the resting container first, as a run's does
   const BedReport settled = run.settle_bed();

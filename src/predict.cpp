@@ -282,7 +282,7 @@ RunReport run_predict(const Deck& deck, const PredictOptions& options) {
   if (fs::exists(path) && !options.force)
     throw InputError(path + ": output file exists; use --force to overwrite it");
 
-  std::vector<double> frequencies = run_frequencies(x);
+  std::vector<double> frequencies = x.frequencies;
   std::sort(frequencies.begin(), frequencies.end());
   frequencies.erase(std::unique(frequencies.begin(), frequencies.end()), frequencies.end());
   const LinearStructure& structure = *scene.structure;

@@ -17,7 +17,7 @@ RunPlan plan_of(const Deck& deck, const Scene& scene) {
   const ExcitationSpec& x = deck.excitation;
   RunPlan plan;
   // Every kind runs as points: its frequencies, or a free decay's one point (no frequency).
-  const std::vector<double> frequencies = run_frequencies(x);
+  const std::vector<double>& frequencies = x.frequencies;
   for (std::size_t k = 0; k < std::max<std::size_t>(1, frequencies.size()); ++k)
     plan.points.push_back({frequencies.empty() ? 0.0 : frequencies[k], point_amplitude(x, k),
                            k < x.sweeps.size() ? x.sweeps[k] : 1});

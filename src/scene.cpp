@@ -182,9 +182,8 @@ Locate locate(const Deck& deck) {
 // run would overflow on: a period's steps in an int (FrequencyRun::configure), and structural
 // matrices that stay finite at every frequency of the deck.
 void check_feasible(const Deck& deck, const Scene& s) {
-  const std::vector<double> frequencies = run_frequencies(deck.excitation);
-  const std::string f_key =
-      frequency_key(deck.excitation, deck.positions.count("excitation.frequencies") > 0);
+  const std::vector<double>& frequencies = deck.excitation.frequencies;
+  const std::string& f_key = deck.excitation.frequencies_key;
   const std::string dt_key = deck.solver.dt > 0 ? "solver.dt" : f_key;
   const std::string step_key = deck.solver.dt > 0 ? "solver.dt" : "solver.dt_safety";
   if (!(s.dt >= kMinDt))
@@ -301,12 +300,9 @@ constexpr double kNonsmoothLimit = 0.5;  // beyond half a radius a step contacts
 double container_speed_bound(const Deck& deck, const Scene& s) {
   const ExcitationSpec& x = deck.excitation;
   double v = 0;
-  const std::vector<double> frequencies = run_frequencies(x);
-  for (std::size_t k = 0; k < frequencies.size(); ++k) {
-    const double omega = 2 * kPi * frequencies[k];
-    const double amplitude = !x.amplitudes.empty()                  ? x.amplitudes[k]
-                             : x.kind == ExcitationKind::prescribed ? x.motion.amplitude
-                                                                    : x.amplitude;
+  for (std::size_t k = 0; k < x.frequencies.size(); ++k) {
+    const double omega = 2 * kPi * x.frequencies[k];
+    const double amplitude = point_amplitude(x, k);
     if (!s.structure) {
       v = std::max(v, omega * amplitude);
       continue;
@@ -321,7 +317,7 @@ double container_speed_bound(const Deck& deck, const Scene& s) {
       v = std::max(v, omega * std::abs(t.cast<std::complex<double>>().dot(q) + drive.base));
     }
   }
-  if (x.kind == ExcitationKind::free_decay && !s.natural_hz.empty())
+  if (x.initial_displacement != 0 && !s.natural_hz.empty())  // a free decay's start
     v = std::max(v, 2 * kPi * s.natural_hz.back() * std::abs(x.initial_displacement));
   return v;
 }
@@ -491,7 +487,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
   if (contact.nonsmooth && !deck.dampers.empty()) nonsmooth_step(deck, s, r_min);
   if (deck.dampers.empty()) {
     // Bare structure: the exact propagator has no step limit; sample 256 steps a period.
-    const std::vector<double> f = run_frequencies(deck.excitation);
+    const std::vector<double>& f = deck.excitation.frequencies;
     const double f_top = f.empty() ? 100.0 : *std::max_element(f.begin(), f.end());
     s.dt = deck.solver.dt > 0 ? deck.solver.dt : 1.0 / (256 * f_top);
     s.dt_basis = deck.solver.dt > 0 ? "given in the deck" : "1/256 of the shortest period";

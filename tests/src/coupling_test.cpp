@@ -208,7 +208,7 @@ TEST_CASE("forced impact damper: rigid and penalty contacts beside the exact mod
   auto error_of = [&](Deck d) {
     d.excitation.kind = ExcitationKind::sine;
     d.excitation.amplitude = 2.0;
-    d.excitation.frequency = 15.0;
+    d.excitation.frequencies = {15.0};
     d.excitation.duration = duration;
     d.output.every = sample;
     const Results r = simulate(d, build_scene(d));

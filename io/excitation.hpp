@@ -51,7 +51,7 @@ constexpr bool in_kind_order() {
     if (static_cast<std::size_t>(kExcitations[k].kind) != k) return false;
   return true;
 }
-static_assert(in_kind_order(), "kExcitations: one entry per ExcitationKind, in its order");
+static_assert(in_kind_order(), "kExcitations: its entries in ExcitationKind's order");
 
 inline const ExcitationTraits& traits(ExcitationKind kind) {
   return kExcitations[static_cast<int>(kind)];

@@ -42,6 +42,7 @@ Deck prescribed_run(const Deck& deck, const Vec3& axis, const std::vector<double
   x.motion.amplitude = amplitudes.front();
   x.motion.frequency = frequencies.front();
   x.frequencies = frequencies;
+  x.frequencies_key = "map.frequencies";
   x.sweeps = sweeps;
   if (stepped) x.amplitudes = amplitudes;
   x.settle = settle;
@@ -390,8 +391,7 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   map.meta_numbers = results.front().meta_numbers;
   map.meta_text["deck"] = deck.text;
   map.meta_text["deck_path"] = deck.path;
-  map.meta_text["identity"] =
-      identity_text(deck_identity(runs.front(), build_scene(runs.front(), 1, Backend::cpu)));
+  map.meta_text["identity"] = identity_text(deck_identity(runs.front()));
   map.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
   map.meta_text.erase("coupling");  // a prescribed motion couples nothing
   for (Results& r : results)

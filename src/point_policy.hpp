@@ -20,7 +20,7 @@ int more_fills(const Ensemble& e, int now, int most, double tolerance);
 // The simulated time (s) the points still planned are expected to take: every fill's points
 // from `reached` (its last point run, -1: none) up to `target` (the last it is to run), and the
 // fills that the points not yet judged are expected to add beyond `want` (the fills each point
-// wants now). `scene` is fill 0's.
+// wants now). `scene` is fill 0's; the caller keeps the record from changing meanwhile.
 double planned_remaining(const RunPlan& plan, const Scene& scene, const RunRecord& record,
                          const std::vector<int>& want, const std::vector<long>& target,
                          const std::vector<long>& reached);

@@ -157,6 +157,12 @@ Identity deck_identity(const Deck& deck, const Scene& scene) {
   return scene_identity(scene, plan_of(deck, scene).bed);
 }
 
+Identity deck_identity(const Deck& deck) {
+  // Neither threads nor the backend change what the identity holds, and fill 0 is all of the
+  // fills it takes.
+  return deck_identity(deck, build_scene(deck, 1, Backend::cpu, false));
+}
+
 std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene) {
   const auto kept = [](const std::string& key) {
     return key == "title" || key == "solver.threads" || key.rfind("cluster.", 0) == 0;
@@ -170,11 +176,13 @@ std::string changes_since(const Results& saved, const Deck& deck, const Scene* s
   // What the deck's text does not hold: a mesh file's triangles, a default of this pdsim.
   const auto id = saved.meta_text.find("identity");
   if (!out.empty() || id == saved.meta_text.end()) return out;
-  // Neither threads nor the backend change what the identity holds.
-  const Identity now =
-      scene ? deck_identity(deck, *scene) : deck_identity(deck, build_scene(deck, 1, Backend::cpu));
+  Identity now;
+  try {
+    now = scene ? deck_identity(deck, *scene) : deck_identity(deck);
+  } catch (const InputError& e) {
+    return std::string("the deck is refused now: ") + e.what();
+  }
   return identity_difference(parse_identity(id->second), now, IdentityScope::bed, "then", "now");
-  return out;
 }
 
 // Free space below which a run warns before it starts, bytes.

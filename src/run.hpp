@@ -49,8 +49,10 @@ double memory_estimate_mib(const RunPlan& plan, const Scene& scene);
 // how much the run may need and how much there is.
 std::string memory_shortfall(const RunPlan& plan, const Scene& scene);
 
-// The identity (src/identity.hpp) of `deck`'s scene, built from it, and of its bed.
+// The identity (src/identity.hpp) of `deck`'s scene and bed: of `scene`, built from the deck,
+// or built here (fill 0 only).
 Identity deck_identity(const Deck& deck, const Scene& scene);
+Identity deck_identity(const Deck& deck);
 
 // Why `saved` (a file an earlier run of `deck` wrote: a checkpoint, a map's run, a sweep's
 // point) cannot be continued or kept by `deck` now, naming each changed key and, where the keys

@@ -317,7 +317,7 @@ double container_speed_bound(const Deck& deck, const Scene& s) {
       v = std::max(v, omega * std::abs(t.cast<std::complex<double>>().dot(q) + drive.base));
     }
   }
-  if (x.initial_displacement != 0 && !s.natural_hz.empty())  // a free decay's start
+  if (!measures_harmonics(x) && !s.natural_hz.empty())  // a free decay's start
     v = std::max(v, 2 * kPi * s.natural_hz.back() * std::abs(x.initial_displacement));
   return v;
 }
@@ -385,7 +385,7 @@ void nonsmooth_step(const Deck& deck, Scene& s, double r_min) {
 
 }  // namespace
 
-Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend) {
+Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend, bool every_fill) {
   Scene s;
   const ContactSpec& contact = deck.contact;
   s.threads = threads > 0 ? threads : deck.solver.threads;
@@ -441,7 +441,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend)
     fill_damper(ds, d.particles.seed, at, key);
     // Every other fill a run may draw (scene_of_fill), drawn here once: a seed whose random fill
     // jams, or whose drawn diameters do not fit, is refused by check, not hours into a run.
-    const int fills = most_fills(deck.excitation);
+    const int fills = every_fill ? most_fills(deck.excitation) : 1;
     for (int r = 1; r < fills; ++r) {
       try {
         draw_fill(ds, d.particles.seed + static_cast<std::uint64_t>(r), at, key);

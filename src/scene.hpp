@@ -5,7 +5,6 @@
 // coupled system takes only the scene, the frequency runs the scene and the plan.
 #pragma once
 
-#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -52,8 +51,11 @@ struct Scene {
 };
 
 // Validates the physical consistency of `deck` and derives the scene. `threads` and `backend`
-// override the deck's [solver] values when given (command line).
-Scene build_scene(const Deck& deck, int threads = 0, std::optional<Backend> backend = {});
+// override the deck's [solver] values when given (command line). `every_fill`: every fill a
+// point may grow to is drawn, so that a seed whose fill cannot be drawn is refused now (else
+// fill 0 only, for what needs no run).
+Scene build_scene(const Deck& deck, int threads = 0, std::optional<Backend> backend = {},
+                  bool every_fill = true);
 
 // The scene of another fill of the same design: `first` with every damper's particles drawn
 // from fill seed seed + fill (radii, positions, masses); the rest (structure, dt) as it is.

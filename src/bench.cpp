@@ -1,12 +1,14 @@
 #include "src/bench.hpp"
 
 #include <CLI/CLI.hpp>
+#include <toml++/toml.h>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <exception>
 #include <numeric>
 #include <optional>
+#include <sstream>
 #include <thread>
 #include <vector>
 
@@ -354,43 +356,23 @@ namespace {
 
 // A structure with one damper holding a single particle that touches no wall: advance() then
 // costs the structure step plus the exchange (kinematics out, force in), and a negligible DEM.
-Deck exchange_deck(bool beam, CouplingScheme scheme, IntegratorKind integrator) {
-  Deck d;
-  d.path = "bench";
-  StructureSpec& s = d.structure;
-  s.integrator = integrator;
-  if (beam) {
-    s.kind = StructureKind::beam;
-    s.direction = {0, 0, 1};
-    s.beam.length = 0.5;
-    s.beam.elements = 20;
-    s.beam.young = 7e10;
-    s.beam.density = 2700;
-    s.beam.area = 0.03 * 0.005;
-    s.beam.inertia = 0.03 * std::pow(0.005, 3) / 12;
-    s.beam.shear_factor = 5.0 / 6.0;
-    s.damping_ratio = 0.005;
-  } else {
-    s.kind = StructureKind::sdof;
-    s.mass = 2.37;
-    s.stiffness = 21500;
-    s.damping = 0.1;
-    s.direction = {1, 0, 0};
-  }
-  DamperSpec damper;
-  damper.container.size = {0.05, 0.05, 0.05};
-  damper.particles.count = 1;
-  damper.particles.diameter = 0.005;
-  damper.particles.density = 7800;
-  damper.particles.fill = Fill::lattice;
-  if (beam) damper.attach_node = 20;
-  d.dampers.push_back(damper);
-  d.contact.young = 2e9;
-  d.coupling.scheme = scheme;
-  d.excitation.kind = ExcitationKind::sine;
-  d.excitation.amplitude = 1;
-  d.excitation.frequencies = {15};
-  return d;
+// Read as a user's deck is, so that it is checked as one.
+Deck exchange_deck(bool beam, const char* scheme, const char* integrator) {
+  const std::string structure =
+      beam ? "kind = \"beam\"\nlength = 0.5\nelements = 20\nyoung = 7.0e10\ndensity = 2700.0\n"
+             "section = { area = 1.5e-4, inertia = 3.125e-10 }\n"  // 30 x 5 mm
+             "damping_ratio = 0.005\ndirection = [0.0, 0.0, 1.0]\n"
+           : "kind = \"sdof\"\nmass = 2.37\nstiffness = 21500.0\ndamping = 0.1\n"
+             "direction = [1.0, 0.0, 0.0]\n";
+  return parse_deck(
+      "[structure]\n" + structure + "integrator = \"" + integrator +
+          "\"\n[[damper]]\ncontainer = { shape = \"box\", size = [0.05, 0.05, 0.05] }\n"
+          "particles = { count = 1, diameter = 0.005, density = 7800.0, fill = \"lattice\" }\n" +
+          (beam ? "attach = { node = 20 }\n" : "") +
+          "[contact]\nyoung = 2.0e9\n[coupling]\nscheme = \"" + scheme +
+          "\"\n[excitation]\nkind = \"sine\"\namplitude = 1.0\nfrequency = 15.0\n"
+          "duration = 1.0\n",
+      "pdsim bench (coupling exchange)");
 }
 
 void bench_coupling() {
@@ -401,7 +383,8 @@ void bench_coupling() {
   for (bool beam : {false, true})
     for (IntegratorKind integrator : {IntegratorKind::exact, IntegratorKind::cvode})
       for (int k = 0; k < 3; ++k) {
-        const Deck d = exchange_deck(beam, static_cast<CouplingScheme>(k), integrator);
+        const Deck d = exchange_deck(beam, schemes[k],
+                                     integrator == IntegratorKind::exact ? "exact" : "cvode");
         std::optional<Scene> built;
         try {
           built.emplace(build_scene(d, 1));
@@ -438,10 +421,17 @@ void bench_coupling() {
 // resonance: the bed stays a dense pile), then the same bed's DEM alone from the same state,
 // its container moved as the coupled run moved it. One thread each.
 void bench_saeki(const BenchOptions& o, Backend backend) {
-  // The example as the user runs it, driven at one frequency below resonance.
-  Deck deck = parse_deck(kSaekiDeck, "examples/saeki_250.toml (compiled in)");
-  deck.excitation.kind = ExcitationKind::sine;
-  deck.excitation.frequencies = {13.0};
+  // The example as the user runs it, driven at one frequency below resonance: its deck with a
+  // sine of the same drive in [excitation], read and checked as a user's deck is.
+  toml::table root = toml::parse(kSaekiDeck);
+  const toml::table& sweep = *root["excitation"].as_table();
+  toml::table sine{{"kind", "sine"}, {"frequency", 13.0}, {"duration", 1.0}};
+  for (const char* key : {"input", "amplitude"})
+    if (const toml::node* value = sweep.get(key)) sine.insert(key, *value);
+  root.insert_or_assign("excitation", std::move(sine));
+  std::ostringstream text;
+  text << root;
+  const Deck deck = parse_deck(text.str(), "examples/saeki_250.toml at 13 Hz (compiled in)");
   const Scene scene = build_scene(deck, 1, backend);
   const double dt = scene.dt, frequency = deck.excitation.frequencies.front();
   const RunPlan plan = plan_of(deck, scene);

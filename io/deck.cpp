@@ -817,13 +817,16 @@ std::vector<DeckChange> deck_changes(const std::string& before, const std::strin
     if (!now.count(key)) changes.push_back({key, value, "absent"});
   std::sort(changes.begin(), changes.end(),
             [](const DeckChange& a, const DeckChange& b) { return a.key < b.key; });
-  // pdsim's own notes, which carry a sweep point's values, a map run's motion or --snapshots.
+  // pdsim's own notes, which carry a sweep point's values, a map run's motion or --snapshots
+  // (sweep_point(), damper_map.cpp's prescribed_run(), with_snapshots()); a user's comment is
+  // layout, whatever it says.
   const auto notes = [](const std::string& text) {
     std::string found;
     std::istringstream lines(text);
     for (std::string line; std::getline(lines, line);)
-      if (line.rfind("# pdsim ", 0) == 0 || line.rfind("# sweep point ", 0) == 0)
-        found += (found.empty() ? "\"" : "; \"") + line.substr(2) + "\"";
+      for (const char* note : {"# sweep point ", "# pdsim map: ", "# pdsim run --snapshots "})
+        if (line.rfind(note, 0) == 0)
+          found += (found.empty() ? "\"" : "; \"") + line.substr(2) + "\"";
     return found.empty() ? std::string("none") : found;
   };
   if (notes(before) != notes(after))

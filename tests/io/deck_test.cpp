@@ -592,6 +592,25 @@ TEST_CASE("structure against excitation kind, and attach against structure kind"
               "18:10: 'damper[0].attach': ", "exactly one of node and x");
 }
 
+// What a resume compares (io/decks.md): keys by value, not layout or comments; pdsim's own notes
+// (a sweep point's values, a map run's motion) as a change of their own.
+TEST_CASE("deck_changes names changed keys and pdsim's notes, not layout or a user's comment") {
+  const std::string before = kSdof + kSine + "# pdsim is the code we use\n";
+  const std::string moved = kSine + "\n\n" + kSdof + "# pdsim, as told\n";
+  CHECK(deck_changes(before, moved).empty());
+  const std::string stiffer = kSdof + "damping = 0.5\n" + kSine;
+  const std::vector<DeckChange> changes = deck_changes(before, stiffer);
+  REQUIRE(changes.size() == 1);
+  CHECK(changes[0].key == "structure.damping");
+  CHECK(changes[0].before == "absent");
+  CHECK(changes[0].after == "0.5");
+  const std::vector<DeckChange> other = deck_changes(before + "# sweep point 1 of 2: x = 1\n",
+                                                     before + "# sweep point 2 of 2: x = 2\n");
+  REQUIRE(other.size() == 1);
+  CHECK(other[0].key == "pdsim's note");
+  CHECK(other[0].before == "\"sweep point 1 of 2: x = 1\"");
+}
+
 TEST_CASE("a TOML syntax error keeps toml++'s line and column") {
   const std::string path = kDecks + "bad_syntax.toml";
   const std::string message = load_error(path);

@@ -11,6 +11,7 @@
 #include "io/excitation.hpp"
 #include "pdsim_version.hpp"
 #include "src/identity.hpp"
+#include "src/interrupt.hpp"
 #include "src/format.hpp"
 #include "src/run_plan.hpp"
 #include "src/slurm.hpp"
@@ -27,54 +28,43 @@ std::string runs_folder(const std::string& map) {
   return (p.parent_path() / (p.stem().string() + "_runs")).string();
 }
 
-// The deck's dampers moved along `axis` by X sin(2 pi f t) at the points (frequencies[k],
-// amplitudes[k]); `stepped`: each fill carries its bed from one point to the next (sweeps[k]
-// +1 up, -1 down), else every point starts from the settled bed.
-Deck prescribed_run(const Deck& deck, const Vec3& axis, const std::vector<double>& frequencies,
-                    const std::vector<double>& amplitudes, const std::vector<int>& sweeps,
-                    bool stepped, const std::string& file, const std::string& label) {
+// The deck a map run compiles from: the deck's dampers moved along the run's axis by
+// X sin(2 pi f t) at its points, no structure; each point from the settled bed or, stepped,
+// carried from the one before. Its text is the deck's with the run's note, which its /meta/deck
+// keeps (a finished run is compared with it).
+Deck prescribed_deck(const Deck& deck, const MapRun& run) {
   Deck d = deck;
   ExcitationSpec& x = d.excitation;
   const SettleSpec settle = deck.excitation.settle;
   x = ExcitationSpec{};
   x.kind = ExcitationKind::prescribed;
-  x.motion.axis = axis;
-  x.motion.amplitude = amplitudes.front();
-  x.motion.frequency = frequencies.front();
-  x.frequencies = frequencies;
+  x.motion.axis = run.axis;
+  x.motion.amplitude = run.points.front().amplitude;
+  x.motion.frequency = run.points.front().frequency;
+  for (const PlanPoint& p : run.points) {
+    x.frequencies.push_back(p.frequency);
+    x.sweeps.push_back(p.sweep);
+    if (run.stepped) x.amplitudes.push_back(p.amplitude);
+  }
   x.frequencies_key = "map.frequencies";
-  x.sweeps = sweeps;
-  if (stepped) x.amplitudes = amplitudes;
   x.settle = settle;
   x.duration = deck.map.duration;
-  x.start = stepped ? FrequencyStart::carried : FrequencyStart::independent;
+  x.start = run.stepped ? FrequencyStart::carried : FrequencyStart::independent;
   d.structure = StructureSpec{};
   d.map = MapSpec{};
-  d.output.file = file;
+  d.output.file = run.file;
   d.output.particles_every = 0;
   d.output.energy = false;
-  // The runs share one settled bed (its identity checks that it is theirs). A rigid contact's
-  // step follows each run's motion (src/scene.cpp), and its bed with it: each run keeps its own,
-  // named for the run ("bed_m001.h5", or the deck's bed.file with "_m001" before its extension).
-  const fs::path run(file);
-  if (d.bed.file.empty())
-    d.bed.file = (run.parent_path() / (deck.contact.nonsmooth ? "bed_" + run.stem().string() + ".h5"
-                                                              : std::string("bed.h5")))
-                     .string();
-  else if (deck.contact.nonsmooth)
-    d.bed.file = (fs::path(d.bed.file).parent_path() /
-                  (fs::path(d.bed.file).stem().string() + "_" + run.stem().string() +
-                   fs::path(d.bed.file).extension().string()))
-                     .string();
+  d.bed.file = run.bed_file;
   std::ostringstream note;
   note.precision(17);
-  note << "\n# pdsim map: " << label << ": prescribed motion along [" << axis.x << ", " << axis.y
-       << ", " << axis.z << "], ";
-  if (stepped) {
-    note << "at " << frequencies.front() << " Hz, amplitudes (m, in this order)";
-    for (double a : amplitudes) note << " " << a;
+  note << "\n# pdsim map: " << run.label << ": prescribed motion along [" << run.axis.x << ", "
+       << run.axis.y << ", " << run.axis.z << "], ";
+  if (run.stepped) {
+    note << "at " << run.points.front().frequency << " Hz, amplitudes (m, in this order)";
+    for (const PlanPoint& p : run.points) note << " " << p.amplitude;
   } else {
-    note << "amplitude " << amplitudes.front() << " m";
+    note << "amplitude " << run.points.front().amplitude << " m";
   }
   d.text += note.str() + "\n";
   return d;
@@ -96,7 +86,7 @@ std::vector<double> amplitudes_at(const MapSpec& m, double f) {
 
 }  // namespace
 
-std::vector<Deck> map_runs(const Deck& deck, const std::string& folder) {
+std::vector<MapRun> map_runs(const Deck& deck, const std::string& folder) {
   const MapSpec& m = deck.map;
   if (!m.given())
     throw InputError(deck.path +
@@ -140,28 +130,60 @@ std::vector<Deck> map_runs(const Deck& deck, const std::string& folder) {
     for (double g : m.accelerations)
       for (double f : m.frequencies) points.push_back({{f}, {amplitude_of(g, f)}, {1}});
   }
-  std::vector<Deck> runs;
+  std::vector<MapRun> runs;
   for (std::size_t k = 0; k < points.size(); ++k) {
-    const std::string label =
-        "run " + std::to_string(k + 1) + " of " + std::to_string(points.size());
+    MapRun& run = runs.emplace_back();
     const Points& p = points[k];
-    runs.push_back(prescribed_run(deck, axis, p.frequencies, p.amplitudes, p.sweeps,
-                                  m.steps != MapSteps::independent, file(k), label));
+    for (std::size_t i = 0; i < p.frequencies.size(); ++i)
+      run.points.push_back({p.frequencies[i], p.amplitudes[i], p.sweeps[i]});
+    run.axis = axis;
+    run.stepped = m.steps != MapSteps::independent;
+    run.file = file(k);
+    run.label = "run " + std::to_string(k + 1) + " of " + std::to_string(points.size());
+    // The runs share one settled bed (its identity checks that it is theirs). A rigid contact's
+    // step follows each run's motion (src/scene.cpp), and its bed with it: each run keeps its
+    // own, named for the run ("bed_m001.h5", or the deck's bed.file with "_m001" before its
+    // extension).
+    const fs::path out(run.file), bed(deck.bed.file);
+    const std::string stem = out.stem().string();
+    run.bed_file =
+        bed.empty() ? (out.parent_path() /
+                       (deck.contact.nonsmooth ? "bed_" + stem + ".h5" : std::string("bed.h5")))
+                          .string()
+        : deck.contact.nonsmooth
+            ? (bed.parent_path() / (bed.stem().string() + "_" + stem + bed.extension().string()))
+                  .string()
+            : deck.bed.file;
   }
   return runs;
 }
 
-MapTable map_rows(const std::vector<Deck>& runs, const std::vector<Results>& results) {
+CompiledRun compile_map_run(const Deck& deck, const MapRun& run, int threads,
+                            std::optional<Backend> backend, bool every_fill) {
+  const Deck d = prescribed_deck(deck, run);
+  CompiledRun c{{d.text, d.path, d.title, ""},
+                build_scene(d, threads, backend, every_fill),
+                {},
+                d.where("bed.file"),
+                {}};
+  c.plan = plan_of(d, c.scene);
+  c.changes = [d](const Results& saved, const Scene& scene) {
+    return changes_since(saved, d, &scene);
+  };
+  return c;
+}
+
+MapTable map_rows(const std::vector<MapRun>& runs, const std::vector<Results>& results) {
   MapTable m;
   for (std::size_t k = 0; k < runs.size(); ++k) {
-    const bool stepped = runs[k].excitation.start == FrequencyStart::carried;
+    const bool stepped = runs[k].stepped;
     const PrescribedTable& p = results[k].prescribed;
-    // Runs written before /prescribed had amplitude and sweep: the run's deck says them.
+    // Runs written before /prescribed had amplitude and sweep: the run's points say them.
     const bool old = p.amplitude.size() != p.frequency.size();
     for (std::size_t i = 0; i < p.frequency.size(); ++i) {
       const double w = 2 * kPi * p.frequency[i];
-      const double X = old ? point_amplitude(runs[k].excitation, i) : p.amplitude[i];
-      m.sweep.push_back(!stepped ? 0 : old ? runs[k].excitation.sweeps[i] : p.sweep[i]);
+      const double X = old ? runs[k].points.at(i).amplitude : p.amplitude[i];
+      m.sweep.push_back(!stepped ? 0 : old ? runs[k].points.at(i).sweep : p.sweep[i]);
       const double F = p.force_amplitude[i], dF = p.force_amplitude_ci[i];
       const double phi = p.force_phase[i], dphi = p.force_phase_ci[i];
       const double c = std::cos(phi), s = std::sin(phi);
@@ -188,27 +210,24 @@ MapTable map_rows(const std::vector<Deck>& runs, const std::vector<Results>& res
 }
 
 std::string check_map(const Deck& deck, int threads, std::optional<Backend> backend) {
-  const std::vector<Deck> runs = map_runs(deck, "runs");
-  double low = runs.front().excitation.motion.amplitude, high = low;
+  const std::vector<MapRun> runs = map_runs(deck, "runs");
+  double low = runs.front().points.front().amplitude, high = low;
   std::size_t points = 0;
-  for (const Deck& run : runs) {
-    const double x = run.excitation.motion.amplitude;
-    for (std::size_t k = 0; k < run.excitation.frequencies.size(); ++k) {
-      const double a = point_amplitude(run.excitation, k);
-      low = std::min(low, a), high = std::max(high, a);
-    }
-    points += run.excitation.frequencies.size();
+  for (const MapRun& run : runs) {
+    for (const PlanPoint& p : run.points)
+      low = std::min(low, p.amplitude), high = std::max(high, p.amplitude);
+    points += run.points.size();
     try {
-      build_scene(run, threads, backend);
+      compile_map_run(deck, run, threads, backend);
     } catch (const InputError& e) {
       throw InputError(std::string(e.what()) + " (in [map], " +
-                       (run.excitation.amplitudes.empty()
-                            ? "at amplitude " + number(x) + " m)"
-                            : "at " + number(run.excitation.frequencies.front()) + " Hz)"));
+                       (!run.stepped
+                            ? "at amplitude " + number(run.points.front().amplitude) + " m)"
+                            : "at " + number(run.points.front().frequency) + " Hz)"));
     }
   }
   const MapSpec& m = deck.map;
-  const Vec3 axis = runs.front().excitation.motion.axis;
+  const Vec3 axis = runs.front().axis;
   std::ostringstream s;
   s << "map: " << (m.amplitudes.empty() ? m.accelerations.size() : m.amplitudes.size())
     << (m.amplitudes.empty() ? " accelerations" : " amplitudes") << " x " << m.frequencies.size()
@@ -226,28 +245,30 @@ namespace {
 
 // Removes the beds pdsim named for the runs (the shared bed.h5, or each rigid run's own); a
 // bed.file the deck names is the user's, refused by name when it no longer fits.
-void remove_run_beds(const Deck& deck, const std::vector<Deck>& runs) {
+void remove_run_beds(const Deck& deck, const std::vector<MapRun>& runs) {
   std::error_code ignored;
   if (deck.bed.file.empty())
-    for (const Deck& run : runs) fs::remove(run.bed.file, ignored);
+    for (const MapRun& run : runs) fs::remove(run.bed_file, ignored);
 }
 
-// Grid run k's results when its file holds them (of this run's deck), else nothing.
-std::optional<Results> finished_run(const Deck& run) {
+// A grid run's results when its file holds them (of this run of this deck), else nothing.
+std::optional<Results> finished_run(const Deck& deck, const MapRun& run) {
   std::error_code ignored;
-  if (!fs::exists(run.output.file, ignored)) return std::nullopt;
-  Results done = read_results(run.output.file);
-  if (const std::string changed = changes_since(done, run); !changed.empty())
-    throw InputError(run.output.file + ": a run of another map (" + changed +
+  if (!fs::exists(run.file, ignored)) return std::nullopt;
+  Results done = read_results(run.file);
+  // Fill 0 is all of the fills its identity takes.
+  const CompiledRun now = compile_map_run(deck, run, 1, Backend::cpu, false);
+  if (const std::string changed = now.changes(done, now.scene); !changed.empty())
+    throw InputError(run.file + ": a run of another map (" + changed +
                      "); run the map anew with --force");
   return done;
 }
 
 // Runs grid run k (0-based) of `runs` into its file, from its checkpoint with `resume`.
-void run_grid_run(const std::vector<Deck>& runs, std::size_t k, const MapOptions& options,
-                  bool resume, const std::string& folder) {
-  const Deck& run = runs[k];
-  const std::string& file = run.output.file;
+void run_grid_run(const Deck& deck, const std::vector<MapRun>& runs, std::size_t k,
+                  const MapOptions& options, bool resume, const std::string& folder) {
+  const MapRun& run = runs[k];
+  const std::string& file = run.file;
   std::error_code ignored;
   RunOptions o;
   o.output = file;
@@ -257,15 +278,16 @@ void run_grid_run(const std::vector<Deck>& runs, std::size_t k, const MapOptions
   o.threads = options.threads;
   o.jobs = options.jobs;
   o.backend = options.backend;
-  if (!options.quiet) {
-    const ExcitationSpec& x = run.excitation;
+  if (!options.quiet)
     std::cerr << "map run " << k + 1 << " of " << runs.size() << ": "
-              << (x.amplitudes.empty() ? "amplitude " + number(x.motion.amplitude) + " m"
-                                       : number(x.frequencies.front()) + " Hz, amplitudes stepped")
+              << (!run.stepped ? "amplitude " + number(run.points.front().amplitude) + " m"
+                               : number(run.points.front().frequency) + " Hz, amplitudes stepped")
               << " -> " << file << (o.resume ? ", from its checkpoint" : "") << "\n";
-  }
   try {
-    run_deck(run, o);
+    const InterruptScope interrupts;
+    refuse_whole_sweep(deck);
+    const std::unique_ptr<OutputLock> lock = claim_output(file, o.force);
+    run_compiled(compile_map_run(deck, run, o.threads, o.backend), file, o);
   } catch (const Interrupted& e) {
     throw Interrupted(std::string(e.what()) + "; finished map runs are in " + folder +
                       ", continue the map with pdsim map --resume");
@@ -280,7 +302,7 @@ void run_grid_run(const std::vector<Deck>& runs, std::size_t k, const MapOptions
 
 // --slurm: the runs not finished as a job array, `pdsim map --collect` after it.
 RunReport submit_map(const Deck& deck, const MapOptions& options, const std::string& path,
-                     const std::string& folder, const std::vector<Deck>& runs) {
+                     const std::string& folder, const std::vector<MapRun>& runs) {
   const int threads = options.threads > 0 ? options.threads : std::max(1, deck.solver.threads);
   SlurmArray job;
   job.script = (fs::path(folder) / "slurm_array.sh").string();
@@ -290,9 +312,9 @@ RunReport submit_map(const Deck& deck, const MapOptions& options, const std::str
     job.options.push_back(option);
   std::vector<std::string> files;
   std::vector<bool> finished;
-  for (const Deck& run : runs) {
-    files.push_back(run.output.file);
-    finished.push_back(!options.force && options.resume && finished_run(run));
+  for (const MapRun& run : runs) {
+    files.push_back(run.file);
+    finished.push_back(!options.force && options.resume && finished_run(deck, run));
   }
   std::vector<int> running;
   job.tasks = pieces_to_submit(files, finished, options.resume, options.force, running);
@@ -311,9 +333,9 @@ RunReport submit_map(const Deck& deck, const MapOptions& options, const std::str
             note + "nothing to submit: " + pdsim_command("map", deck.path, path, "", " --collect") +
                 " writes the map once every run has finished"};
   for (int k : job.tasks) {
-    const Deck& run = runs[static_cast<std::size_t>(k - 1)];
-    const Scene scene = build_scene(run, threads, options.backend);
-    job.memory_mib = std::max(job.memory_mib, memory_estimate_mib(plan_of(run, scene), scene));
+    const CompiledRun run =
+        compile_map_run(deck, runs[static_cast<std::size_t>(k - 1)], threads, options.backend);
+    job.memory_mib = std::max(job.memory_mib, memory_estimate_mib(run.plan, run.scene));
   }
   job.name = "pdsim-" + fs::path(path).stem().string();
   job.threads = threads;
@@ -338,7 +360,7 @@ RunReport submit_map(const Deck& deck, const MapOptions& options, const std::str
 RunReport run_map(const Deck& deck, const MapOptions& options) {
   const std::string path = options.output.empty() ? output_beside(deck, "_map.h5") : options.output;
   const std::string folder = runs_folder(path);
-  const std::vector<Deck> runs = map_runs(deck, folder);
+  const std::vector<MapRun> runs = map_runs(deck, folder);
   if (!options.slurm && !options.sbatch.empty()) throw InputError("--sbatch: only with --slurm");
   if (options.slurm && (options.run > 0 || options.collect))
     throw InputError(std::string("--slurm and ") + (options.run > 0 ? "--run" : "--collect") +
@@ -360,10 +382,10 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   if (options.slurm) return submit_map(deck, options, path, folder, runs);
   if (options.run > 0) {  // a Slurm task: its run, kept when finished, else continued
     const auto k = static_cast<std::size_t>(options.run - 1);
-    if (finished_run(runs[k])) return {"", runs[k].output.file + ": finished earlier, kept"};
-    run_grid_run(runs, k, options, true, folder);
+    if (finished_run(deck, runs[k])) return {"", runs[k].file + ": finished earlier, kept"};
+    run_grid_run(deck, runs, k, options, true, folder);
     return {"", "map run " + std::to_string(options.run) + " of " + std::to_string(runs.size()) +
-                    " finished: " + runs[k].output.file};
+                    " finished: " + runs[k].file};
   }
   // The beds of the runs are settled anew with them.
   if (options.force && whole) remove_run_beds(deck, runs);
@@ -371,14 +393,14 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   std::string missing;
   for (std::size_t k = 0; k < runs.size(); ++k) {
     std::optional<Results> done;
-    if ((options.resume && !options.force) || options.collect) done = finished_run(runs[k]);
+    if ((options.resume && !options.force) || options.collect) done = finished_run(deck, runs[k]);
     if (!done && options.collect) {
       missing += (missing.empty() ? "" : ", ") + std::to_string(k + 1);
       continue;
     }
     if (!done) {
-      run_grid_run(runs, k, options, options.resume && !options.force, folder);
-      done = read_results(runs[k].output.file);
+      run_grid_run(deck, runs, k, options, options.resume && !options.force, folder);
+      done = read_results(runs[k].file);
     }
     results.push_back(std::move(*done));
   }
@@ -391,7 +413,8 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   map.meta_numbers = results.front().meta_numbers;
   map.meta_text["deck"] = deck.text;
   map.meta_text["deck_path"] = deck.path;
-  map.meta_text["identity"] = identity_text(deck_identity(runs.front()));
+  const CompiledRun first = compile_map_run(deck, runs.front(), 1, Backend::cpu, false);
+  map.meta_text["identity"] = identity_text(scene_identity(first.scene, first.plan.bed));
   map.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
   map.meta_text.erase("coupling");  // a prescribed motion couples nothing
   for (Results& r : results)

@@ -26,16 +26,30 @@ struct MapOptions {
   std::string sbatch;    // more sbatch options for --slurm, after the deck's [cluster] sbatch
 };
 
+// One of a map's runs: the deck's dampers moved along `axis` (m) at its points, each from the
+// settled bed or, `stepped`, carried from the one before (an amplitude sweep at one frequency);
+// its file, the bed file it reads or keeps, and its label ("run 2 of 6").
+struct MapRun {
+  std::vector<PlanPoint> points;  // frequency (Hz), amplitude (m), sweep, in the order they run
+  Vec3 axis;
+  bool stepped = false;
+  std::string file, bed_file, label;
+};
+
 // The map's runs, in order: one per amplitude over the map's frequencies, or one per
-// acceleration and frequency (its amplitude a g / w^2). Each is the deck with prescribed motion
-// along its structure's direction (a prescribed deck: its motion's axis), written to `folder`;
-// the frequencies start independently from the settled bed, shared by every run through a bed
-// file. Throws InputError for a deck without [map] or whose host has no one direction of motion
-// (a beam).
-std::vector<Deck> map_runs(const Deck& deck, const std::string& folder);
+// acceleration and frequency (its amplitude a g / w^2), or stepped, one per frequency through
+// its amplitudes; along the structure's direction (a prescribed deck: its motion's axis), their
+// files in `folder`. Every run reads the one settled bed (rigid contacts: each its own, its step
+// following its motion). Throws InputError for a deck without [map] or [[damper]].
+std::vector<MapRun> map_runs(const Deck& deck, const std::string& folder);
+
+// A map run compiled: the deck's dampers on a prescribed host (no structure) and the run's plan;
+// its /meta/deck is the deck's text with a note of the run. `every_fill`: as build_scene().
+CompiledRun compile_map_run(const Deck& deck, const MapRun& run, int threads,
+                            std::optional<Backend> backend, bool every_fill = true);
 
 // /map from the runs' /prescribed tables (results[k] is runs[k]'s).
-MapTable map_rows(const std::vector<Deck>& runs, const std::vector<Results>& results);
+MapTable map_rows(const std::vector<MapRun>& runs, const std::vector<Results>& results);
 
 // `pdsim check`'s lines on the map, every run's scene built (so that a run that would be refused
 // is refused now, naming its point).

@@ -188,31 +188,22 @@ std::string changes_since(const Results& saved, const Deck& deck, const Scene* s
 // Free space below which a run warns before it starts, bytes.
 constexpr std::uintmax_t kLowSpace = 64u << 20;
 
-RunReport run_deck(const Deck& deck, const RunOptions& options) {
-  const InterruptScope interrupts;
-  const std::string path = output_path(deck, options);
-  const std::string partial = path + ".partial";
+std::unique_ptr<OutputLock> claim_output(const std::string& path, bool force) {
   namespace fs = std::filesystem;
-  if (deck.sweep.points() > 0 && deck.point == 0)
-    throw InputError(deck.path + ": the deck has a [sweep] table of " +
-                     std::to_string(deck.sweep.points()) +
-                     " points; run them all with `pdsim sweep`, or one with `pdsim run --point K`");
   // Everything about the output that can be known before computing is checked first.
   std::error_code ignored;  // a path that cannot be examined is treated as absent
   const fs::path folder = fs::path(path).parent_path();
-  if (deck.point > 0 && !folder.empty() && path.find('\0') == std::string::npos)
-    fs::create_directories(folder, ignored);  // a sweep point's folder
   check_output_path(path);
-  if (fs::exists(path, ignored) && !options.force)
+  if (fs::exists(path, ignored) && !force)
     throw InputError(path + ": output file exists; use --force to overwrite it");
   const fs::path place = folder.empty() ? fs::path(".") : folder;
   // A full disk costs no finished work (the last checkpoint survives), but say it early.
   if (const auto space = fs::space(place, ignored); space.available < kLowSpace)
     std::cerr << "warning: only " << space.available / (1 << 20) << " MiB free for " << path
               << "; a full disk stops the run (exit 2, the last checkpoint kept)\n";
-  std::optional<OutputLock> lock;
+  std::unique_ptr<OutputLock> lock;
   try {
-    lock.emplace(path);
+    lock = std::make_unique<OutputLock>(path);
   } catch (const std::runtime_error& e) {
     throw InputError(e.what());
   }
@@ -224,23 +215,59 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
     if (name.rfind(stem + ".tmp-", 0) == 0 || name.rfind(stem + ".partial.tmp-", 0) == 0)
       fs::remove(entry.path(), ignored);
   }
-  const Scene scene = build_scene(deck, options.threads, options.backend);
+  return lock;
+}
+
+CompiledRun compile_run(const Deck& deck, int threads, std::optional<Backend> backend) {
+  CompiledRun run{deck_record(deck), build_scene(deck, threads, backend), {}, {}, {}};
+  run.plan = plan_of(deck, run.scene);
+  run.bed_where = deck.where("bed.file");
+  run.changes = [deck](const Results& saved, const Scene& scene) {
+    return changes_since(saved, deck, &scene);
+  };
+  return run;
+}
+
+void refuse_whole_sweep(const Deck& deck) {
+  if (deck.sweep.points() > 0 && deck.point == 0)
+    throw InputError(deck.path + ": the deck has a [sweep] table of " +
+                     std::to_string(deck.sweep.points()) +
+                     " points; run them all with `pdsim sweep`, or one with `pdsim run --point K`");
+}
+
+RunReport run_deck(const Deck& deck, const RunOptions& options) {
+  const InterruptScope interrupts;
+  const std::string path = output_path(deck, options);
+  refuse_whole_sweep(deck);
+  namespace fs = std::filesystem;
+  std::error_code ignored;
+  const fs::path folder = fs::path(path).parent_path();
+  if (deck.point > 0 && !folder.empty() && path.find('\0') == std::string::npos)
+    fs::create_directories(folder, ignored);  // a sweep point's folder
+  const std::unique_ptr<OutputLock> lock = claim_output(path, options.force);
+  return run_compiled(compile_run(deck, options.threads, options.backend), path, options);
+}
+
+RunReport run_compiled(const CompiledRun& run, const std::string& path, const RunOptions& options) {
+  const InterruptScope interrupts;
+  const std::string partial = path + ".partial";
+  namespace fs = std::filesystem;
+  const Scene& scene = run.scene;
   if (!scene.warning.empty()) std::cerr << "warning: " << scene.warning << "\n";
-  const RunPlan run = plan_of(deck, scene);
-  if (const std::string short_of = memory_shortfall(run, scene); !short_of.empty())
+  if (const std::string short_of = memory_shortfall(run.plan, scene); !short_of.empty())
     std::cerr << "warning: " << short_of << "\n";
-  Plan plan = plan_run(run, scene, options.jobs);
+  Plan plan = plan_run(run.plan, scene, options.jobs);
   // A resumed run's checkpoint holds its first fills' beds: bed.file is not read (as before
   // the first point, when it was).
   std::optional<Results> beds =
-      options.resume ? std::nullopt : read_bed_file(scene, run, deck.where("bed.file"));
-  Driver driver(deck_record(deck), run, std::move(beds), std::move(plan.first), plan.make_scene,
+      options.resume ? std::nullopt : read_bed_file(scene, run.plan, run.bed_where);
+  Driver driver(run.record, run.plan, std::move(beds), std::move(plan.first), plan.make_scene,
                 plan.jobs, options.quiet, path + ".blowup.csv");
   if (options.resume) {
     if (!fs::exists(partial))
       throw InputError(partial + ": nothing to resume (no checkpoint of an interrupted run)");
     Results saved = read_results(partial);
-    if (const std::string changed = changes_since(saved, deck, &scene); !changed.empty())
+    if (const std::string changed = run.changes(saved, scene); !changed.empty())
       throw InputError(partial + ": the deck changed since the interrupted run (" + changed +
                        "); run it anew without --resume");
     if (saved.checkpoint.empty())
@@ -273,7 +300,7 @@ RunReport run_deck(const Deck& deck, const RunOptions& options) {
     return {partial, "stopped after " + std::to_string(driver.finished()) +
                          " frequencies as asked; continue with --resume"};
   write_results(path, results, true, options.force);
-  std::string summary = summary_line(results, path, run);
+  std::string summary = summary_line(results, path, run.plan);
   if (results.particles) {
     write_xdmf(path, *results.particles);
     summary += "; particles: " + xdmf_path(path) + " (ParaView)";

@@ -2,12 +2,15 @@
 // (src/driver.hpp), the file written and the summary line.
 #pragma once
 
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 
 #include "io/deck.hpp"
 #include "io/results.hpp"
 #include "src/identity.hpp"
+#include "src/provenance.hpp"
 #include "src/run_plan.hpp"
 #include "src/scene.hpp"
 
@@ -62,9 +65,32 @@ Identity deck_identity(const Deck& deck);
 // io/decks.md).
 std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene = nullptr);
 
+// Refuses a deck with a [sweep] table (not one of its points): it runs point by point.
+void refuse_whole_sweep(const Deck& deck);
+
 // Runs the deck to completion and writes its results. Throws InputError for user errors
 // (existing output without --force, resume mismatch) and SimulationError for blow-ups.
 RunReport run_deck(const Deck& deck, const RunOptions& options);
+
+// A run once its deck is compiled: what its /meta says of the deck, fill 0's scene, the plan,
+// where the deck names bed.file (for its refusals), and why the file of an earlier run (a
+// checkpoint) cannot be continued by it ("" when it can; changes_since()).
+struct CompiledRun {
+  DeckRecord record;
+  Scene scene;
+  RunPlan plan;
+  SourcePos bed_where;
+  std::function<std::string(const Results& saved, const Scene& scene)> changes;
+};
+CompiledRun compile_run(const Deck& deck, int threads, std::optional<Backend> backend);
+
+// Refuses an output no run may write (check_output_path(), an existing file without `force`),
+// warns when its disk is nearly full, and holds its lock (removing what a killed run left
+// there) until the returned lock is dropped.
+std::unique_ptr<OutputLock> claim_output(const std::string& path, bool force);
+
+// Runs `run` into `path` (claimed: claim_output()) as run_deck() does.
+RunReport run_compiled(const CompiledRun& run, const std::string& path, const RunOptions& options);
 
 // Runs the deck and returns the results without writing a file (tests, benchmarks); `jobs` runs
 // side by side when the deck has several (independent frequencies, realisations).

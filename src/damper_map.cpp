@@ -160,17 +160,7 @@ std::vector<MapRun> map_runs(const Deck& deck, const std::string& folder) {
 
 CompiledRun compile_map_run(const Deck& deck, const MapRun& run, int threads,
                             std::optional<Backend> backend, bool every_fill) {
-  const Deck d = prescribed_deck(deck, run);
-  CompiledRun c{{d.text, d.path, d.title, ""},
-                build_scene(d, threads, backend, every_fill),
-                {},
-                d.where("bed.file"),
-                {}};
-  c.plan = plan_of(d, c.scene);
-  c.changes = [d](const Results& saved, const Scene& scene) {
-    return changes_since(saved, d, &scene);
-  };
-  return c;
+  return compile_run(prescribed_deck(deck, run), threads, backend, every_fill);
 }
 
 MapTable map_rows(const std::vector<MapRun>& runs, const std::vector<Results>& results) {
@@ -256,9 +246,7 @@ std::optional<Results> finished_run(const Deck& deck, const MapRun& run) {
   std::error_code ignored;
   if (!fs::exists(run.file, ignored)) return std::nullopt;
   Results done = read_results(run.file);
-  // Fill 0 is all of the fills its identity takes.
-  const CompiledRun now = compile_map_run(deck, run, 1, Backend::cpu, false);
-  if (const std::string changed = now.changes(done, now.scene); !changed.empty())
+  if (const std::string changed = changes_since(done, prescribed_deck(deck, run)); !changed.empty())
     throw InputError(run.file + ": a run of another map (" + changed +
                      "); run the map anew with --force");
   return done;
@@ -413,8 +401,7 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   map.meta_numbers = results.front().meta_numbers;
   map.meta_text["deck"] = deck.text;
   map.meta_text["deck_path"] = deck.path;
-  const CompiledRun first = compile_map_run(deck, runs.front(), 1, Backend::cpu, false);
-  map.meta_text["identity"] = identity_text(scene_identity(first.scene, first.plan.bed));
+  map.meta_text["identity"] = identity_text(deck_identity(prescribed_deck(deck, runs.front())));
   map.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
   map.meta_text.erase("coupling");  // a prescribed motion couples nothing
   for (Results& r : results)

@@ -26,7 +26,7 @@ struct MapOptions {
   std::string sbatch;    // more sbatch options for --slurm, after the deck's [cluster] sbatch
 };
 
-// One of a map's runs: the deck's dampers moved along `axis` (m) at its points, each from the
+// One of a map's runs: the deck's dampers moved along `axis` (unit) at its points, each from the
 // settled bed or, `stepped`, carried from the one before (an amplitude sweep at one frequency);
 // its file, the bed file it reads or keeps, and its label ("run 2 of 6").
 struct MapRun {

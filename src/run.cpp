@@ -218,8 +218,9 @@ std::unique_ptr<OutputLock> claim_output(const std::string& path, bool force) {
   return lock;
 }
 
-CompiledRun compile_run(const Deck& deck, int threads, std::optional<Backend> backend) {
-  CompiledRun run{deck_record(deck), build_scene(deck, threads, backend), {}, {}, {}};
+CompiledRun compile_run(const Deck& deck, int threads, std::optional<Backend> backend,
+                        bool every_fill) {
+  CompiledRun run{deck_record(deck), build_scene(deck, threads, backend, every_fill), {}, {}, {}};
   run.plan = plan_of(deck, run.scene);
   run.bed_where = deck.where("bed.file");
   run.changes = [deck](const Results& saved, const Scene& scene) {

@@ -82,7 +82,9 @@ struct CompiledRun {
   SourcePos bed_where;
   std::function<std::string(const Results& saved, const Scene& scene)> changes;
 };
-CompiledRun compile_run(const Deck& deck, int threads, std::optional<Backend> backend);
+// `every_fill`: as build_scene().
+CompiledRun compile_run(const Deck& deck, int threads, std::optional<Backend> backend,
+                        bool every_fill = true);
 
 // Refuses an output no run may write (check_output_path(), an existing file without `force`),
 // warns when its disk is nearly full, and holds its lock (removing what a killed run left

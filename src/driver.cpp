@@ -30,9 +30,7 @@ class Driver::Impl {
         jobs_(jobs),
         quiet_(quiet),
         dump_path_(std::move(dump_path)) {
-    fills_min_ = plan_.first_fills;
-    fills_max_ = plan_.most_fills;
-    const auto fills = static_cast<std::size_t>(fills_max_);
+    const auto fills = static_cast<std::size_t>(plan_.most_fills);
     scenes_.resize(fills);
     scenes_[0] = std::make_unique<Scene>(std::move(first));
     identity_ = identity_text(scene_identity(*scenes_[0], plan_.bed));
@@ -192,7 +190,7 @@ class Driver::Impl {
   // The beds of the first fills (settle.realisations): from bed.file when it holds them (with
   // any further fills it holds), else settled side by side (and written there).
   void settle_beds(Progress& progress) {
-    const auto first = static_cast<std::size_t>(fills_min_);
+    const auto first = static_cast<std::size_t>(plan_.first_fills);
     std::vector<std::size_t> missing;
     for (std::size_t r = 0; r < first; ++r)
       if (record_.beds[r].empty()) missing.push_back(r);
@@ -242,8 +240,8 @@ class Driver::Impl {
     // point (independent: its fills run in this session); the first fills' work, to which
     // fills added later add theirs.
     const std::size_t slots = independent() ? plan_.points.size() : record_.beds.size();
-    const double total =
-        independent() ? double(todo) * fills_min_ : double(plan_.points.size()) * fills_min_;
+    const double total = independent() ? double(todo) * plan_.first_fills
+                                       : double(plan_.points.size()) * plan_.first_fills;
     Progress progress(quiet_, std::max(slots, record_.beds.size()), std::max(total, 1.0),
                       plan_.steady);
     progress_ = &progress;
@@ -258,7 +256,7 @@ class Driver::Impl {
   void say_adding(std::size_t s, const Ensemble& e, int now, int next) {
     progress_->say(point_text(plan_, s) + ": " + ensemble_text(e, prescribed()) + "; " +
                    std::to_string(next - now) + " more fills (" + std::to_string(next) + " of " +
-                   std::to_string(fills_max_) + ")");
+                   std::to_string(plan_.most_fills) + ")");
   }
 
   // A carried sweep. Every fill is a sweep of its own, so fills run independently, `jobs_` at
@@ -268,10 +266,10 @@ class Driver::Impl {
   // changes only the order of the work, never what a fill computes.
   void run_carried(Progress& progress) {
     const auto last = static_cast<long>(plan_.points.size()) - 1;
-    want_.assign(plan_.points.size(), fills_min_);
+    want_.assign(plan_.points.size(), plan_.first_fills);
     target_.assign(record_.beds.size(), -1);
     busy_.assign(record_.beds.size(), 0);
-    for (std::size_t r = 0; r < static_cast<std::size_t>(fills_min_); ++r) target_[r] = last;
+    for (std::size_t r = 0; r < static_cast<std::size_t>(plan_.first_fills); ++r) target_[r] = last;
     std::unique_lock<std::mutex> lock(mutex_);
     judge_ready();
     std::exception_ptr failure;
@@ -341,8 +339,8 @@ class Driver::Impl {
         ready = ready && record_.points[r][s].has_value();
       if (!ready) continue;
       const Ensemble e = judge_step(s, static_cast<std::size_t>(want_[s]));
-      if (e.wants_fills && want_[s] < fills_max_) {
-        const int next = more_fills(e, want_[s], fills_max_, plan_.settle.tolerance);
+      if (e.wants_fills && want_[s] < plan_.most_fills) {
+        const int next = more_fills(e, want_[s], plan_.most_fills, plan_.settle.tolerance);
         say_adding(s, e, want_[s], next);
         for (auto r = static_cast<std::size_t>(want_[s]); r < static_cast<std::size_t>(next); ++r) {
           if (target_[r] < static_cast<long>(s))
@@ -429,14 +427,15 @@ class Driver::Impl {
   // deck.
   static constexpr int kLookPeriods = 25;
   bool looking() const {
-    return !independent() && fills_min_ >= 2 && plan_.steady && plan_.settle.average_periods == 0;
+    return !independent() && plan_.first_fills >= 2 && plan_.steady &&
+           plan_.settle.average_periods == 0;
   }
   // The means fill r's pending look compares (mutex_ held): its own and those of the fills
   // before it at that look, or their final ones; empty while one has not got there.
   std::vector<std::complex<double>> look_values(std::size_t r) const {
     const auto s = static_cast<std::size_t>(reached_[r] + 1), j = std::size_t(look_at_[r]);
     std::vector<std::complex<double>> values;
-    for (std::size_t q = 0; q < std::max(r + 1, static_cast<std::size_t>(fills_min_)); ++q) {
+    for (std::size_t q = 0; q < std::max(r + 1, static_cast<std::size_t>(plan_.first_fills)); ++q) {
       const auto& posted = record_.looks[q][s];
       if (posted.size() >= j)
         values.push_back(posted[j - 1]);
@@ -488,7 +487,7 @@ class Driver::Impl {
     in_parallel(todo.size(), [&](std::size_t k) {
       const std::size_t s = todo[k];
       double done = 0;
-      for (int want = fills_min_;;) {
+      for (int want = plan_.first_fills;;) {
         for (std::size_t r = 0; r < static_cast<std::size_t>(want); ++r, done += 1) {
           if (record_.points[r][s]) continue;
           ensure_bed(r, progress);
@@ -509,8 +508,8 @@ class Driver::Impl {
           progress_->say(fill_text(*record_.points[r][s], r, plan_));
         }
         const Ensemble e = judge_step(s);
-        if (!e.wants_fills || want >= fills_max_) break;
-        const int next = more_fills(e, want, fills_max_, plan_.settle.tolerance);
+        if (!e.wants_fills || want >= plan_.most_fills) break;
+        const int next = more_fills(e, want, plan_.most_fills, plan_.settle.tolerance);
         say_adding(s, e, want, next);
         progress_->add_total(next - want);
         want = next;
@@ -571,8 +570,8 @@ class Driver::Impl {
     f.variant = variant_;
     f.bed = record_.reports[0];
     f.bed_from_file = record_.bed_from_file;
-    f.fills_min = fills_min_;
-    f.fills_max = fills_max_;
+    f.fills_min = plan_.first_fills;
+    f.fills_max = plan_.most_fills;
     for (std::size_t k = 0; k < record_.points.size(); ++k)
       for (const auto& p : record_.points[k])
         f.fills_used = p ? std::max(f.fills_used, k + 1) : f.fills_used;
@@ -596,7 +595,6 @@ class Driver::Impl {
   int jobs_;
   bool quiet_;
   std::string dump_path_;
-  int fills_min_ = 1, fills_max_ = 1;
   std::unique_ptr<std::once_flag[]> bed_once_;
   std::vector<std::unique_ptr<FrequencyRun>> runs_;  // carried: each fill's run
   std::vector<long> reached_;        // carried: the last point each fill ran (-1: none)

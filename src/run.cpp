@@ -144,13 +144,22 @@ std::string memory_shortfall(const RunPlan& plan, const Scene& scene) {
          "fills (settle.max_realisations) need less";
 }
 
+namespace {
+
+// The Driver of `run`'s fills, `jobs` side by side; the beds kept in bed.file read unless
+// `resume` (a resumed run's checkpoint holds its first fills' beds, as before its first point).
+Driver driver_of(const CompiledRun& run, int jobs, bool quiet, std::string dump_path, bool resume) {
+  Plan plan = plan_run(run.plan, run.scene, jobs);
+  return Driver(run.record, run.plan,
+                resume ? std::nullopt : read_bed_file(run.scene, run.plan, run.bed_where),
+                std::move(plan.first), plan.make_scene, plan.jobs, quiet, std::move(dump_path));
+}
+
+}  // namespace
+
 Results simulate(const Deck& deck, const Scene& scene, bool quiet, int jobs) {
-  RunPlan run = plan_of(deck, scene);
-  Plan plan = plan_run(run, scene, jobs);
-  std::optional<Results> beds = read_bed_file(scene, run, deck.where("bed.file"));
-  Driver driver(deck_record(deck), std::move(run), std::move(beds), std::move(plan.first),
-                plan.make_scene, plan.jobs, quiet, "");
-  return driver.run({}, 0);
+  const CompiledRun run{deck_record(deck), scene, plan_of(deck, scene), deck.where("bed.file"), {}};
+  return driver_of(run, jobs, quiet, "", false).run({}, 0);
 }
 
 Identity deck_identity(const Deck& deck, const Scene& scene) {
@@ -257,13 +266,7 @@ RunReport run_compiled(const CompiledRun& run, const std::string& path, const Ru
   if (!scene.warning.empty()) std::cerr << "warning: " << scene.warning << "\n";
   if (const std::string short_of = memory_shortfall(run.plan, scene); !short_of.empty())
     std::cerr << "warning: " << short_of << "\n";
-  Plan plan = plan_run(run.plan, scene, options.jobs);
-  // A resumed run's checkpoint holds its first fills' beds: bed.file is not read (as before
-  // the first point, when it was).
-  std::optional<Results> beds =
-      options.resume ? std::nullopt : read_bed_file(scene, run.plan, run.bed_where);
-  Driver driver(run.record, run.plan, std::move(beds), std::move(plan.first), plan.make_scene,
-                plan.jobs, options.quiet, path + ".blowup.csv");
+  Driver driver = driver_of(run, options.jobs, options.quiet, path + ".blowup.csv", options.resume);
   if (options.resume) {
     if (!fs::exists(partial))
       throw InputError(partial + ": nothing to resume (no checkpoint of an interrupted run)");

@@ -43,8 +43,8 @@ struct RunPlan {
 
   // Hz, 0 when no point has a frequency (a free decay).
   double highest_frequency() const;
-  // Whether any point runs at `start` (several fills side by side from their own beds).
-  bool independent() const { return ensemble && start == FrequencyStart::independent; }
+  // Whether each point runs on its own from the fills' settled beds, side by side.
+  bool independent() const { return start == FrequencyStart::independent; }
 };
 
 // The deck's excitation, [excitation.settle], [bed] and [output] as the run of `scene` (built

@@ -818,7 +818,7 @@ std::vector<DeckChange> deck_changes(const std::string& before, const std::strin
   std::sort(changes.begin(), changes.end(),
             [](const DeckChange& a, const DeckChange& b) { return a.key < b.key; });
   // pdsim's own notes, which carry a sweep point's values, a map run's motion or --snapshots
-  // (sweep_point(), damper_map.cpp's prescribed_deck(), with_snapshots()); a user's comment is
+  // (sweep_point(), damper_map.cpp's run_text(), with_snapshots()); a user's comment is
   // layout, whatever it says.
   const auto notes = [](const std::string& text) {
     std::string found;

@@ -114,7 +114,8 @@ EngineConfig steel_spheres(const DamperSpec& d, double young, double restitution
   c.gravity = Vec3{0, 0, -9.81};
   c.dt = dt;
   c.contact = hertz_contact(young, 0.3, restitution, 0.3);
-  for (const Vec3& p : fill_particles(d, c.radius, SourcePos{"bench", 0, 0}, "bench"))
+  for (const Vec3& p : fill_particles(WallShape::box, c.geometry, d.particles, c.radius,
+                                      SourcePos{"bench", 0, 0}, "bench"))
     c.particles.push_back({p, {}, {}});
   return c;
 }

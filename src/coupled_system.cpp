@@ -91,8 +91,8 @@ const LinearStructure& structure_of(const Scene& scene) {
 CoupledSystem::CoupledSystem(const Scene& scene)
     : scene_(scene),
       coupling_(scene.coupling),
-      integrator_kind_(scene.structure_spec.integrator),
-      direction_(scene.structure_spec.direction),
+      integrator_kind_(scene.integrator),
+      direction_(scene.direction),
       structure_(structure_of(scene)),
       every_(scene.coupling.every) {
   if (scene.structure) {
@@ -107,10 +107,7 @@ CoupledSystem::CoupledSystem(const Scene& scene)
   pending_force_.assign(engines_.size(), 0.0);
   force_ = force_sum_ = guess_ = torque_ = torque_sum_ = pending_torque_ = pending_force_;
   displacement_ = force_mean_ = spring_energy_ = pending_spring_energy_ = pending_force_;
-  if (scene.structure_spec.kind == StructureKind::beam) {
-    const Vec3 axis = cross(scene.structure_spec.beam.axis, direction_);
-    rotation_axis_ = (1.0 / norm(axis)) * axis;
-  }
+  if (scene.rotation_axis) rotation_axis_ = *scene.rotation_axis;
   const int n = structure_.size();
   load_ = damper_load_ = q_start_ = v_start_ = damping_force_ = Eigen::VectorXd::Zero(n);
   if (integrator_) base_inertia_ = structure_.mass * structure_.base_influence;

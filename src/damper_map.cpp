@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -28,15 +29,10 @@ std::string runs_folder(const std::string& map) {
   return (p.parent_path() / (p.stem().string() + "_runs")).string();
 }
 
-// The deck a map run compiles from: the deck's dampers moved along the run's axis by
-// X sin(2 pi f t) at its points, no structure; each point from the settled bed or, stepped,
-// carried from the one before. Its text is the deck's with the run's note, which its /meta/deck
-// keeps (a finished run is compared with it).
-Deck prescribed_deck(const Deck& deck, const MapRun& run) {
-  Deck d = deck;
-  ExcitationSpec& x = d.excitation;
-  const SettleSpec settle = deck.excitation.settle;
-  x = ExcitationSpec{};
+// A map run's excitation: the deck's dampers moved along the run's axis by X sin(2 pi f t) at its
+// points (no structure), each from the settled bed or, stepped, carried from the one before.
+ExcitationSpec run_excitation(const Deck& deck, const MapRun& run) {
+  ExcitationSpec x;
   x.kind = ExcitationKind::prescribed;
   x.motion.axis = run.axis;
   x.motion.amplitude = run.points.front().amplitude;
@@ -47,15 +43,15 @@ Deck prescribed_deck(const Deck& deck, const MapRun& run) {
     if (run.stepped) x.amplitudes.push_back(p.amplitude);
   }
   x.frequencies_key = "map.frequencies";
-  x.settle = settle;
+  x.settle = deck.excitation.settle;
   x.duration = deck.map.duration;
   x.start = run.stepped ? FrequencyStart::carried : FrequencyStart::independent;
-  d.structure = StructureSpec{};
-  d.map = MapSpec{};
-  d.output.file = run.file;
-  d.output.particles_every = 0;
-  d.output.energy = false;
-  d.bed.file = run.bed_file;
+  return x;
+}
+
+// A map run's /meta/deck: the deck's text with a note of the run (a finished run is compared
+// with it).
+std::string run_text(const Deck& deck, const MapRun& run) {
   std::ostringstream note;
   note.precision(17);
   note << "\n# pdsim map: " << run.label << ": prescribed motion along [" << run.axis.x << ", "
@@ -66,8 +62,13 @@ Deck prescribed_deck(const Deck& deck, const MapRun& run) {
   } else {
     note << "amplitude " << run.points.front().amplitude << " m";
   }
-  d.text += note.str() + "\n";
-  return d;
+  return deck.text + note.str() + "\n";
+}
+
+// The identity of a map run's dampers and bed (fill 0 is all it takes).
+Identity run_identity(const Deck& deck, const MapRun& run) {
+  const CompiledRun c = compile_map_run(map_model(deck, run, 1, Backend::cpu, false), deck, run);
+  return scene_identity(c.scene, c.plan.bed);
 }
 
 // The amplitude (m) of a peak acceleration of g (in kStandardGravity) at f Hz.
@@ -158,9 +159,30 @@ std::vector<MapRun> map_runs(const Deck& deck, const std::string& folder) {
   return runs;
 }
 
-CompiledRun compile_map_run(const Deck& deck, const MapRun& run, int threads,
-                            std::optional<Backend> backend, bool every_fill) {
-  return compile_run(prescribed_deck(deck, run), threads, backend, every_fill);
+DamperModel map_model(const Deck& deck, const MapRun& run, int threads,
+                      std::optional<Backend> backend, bool every_fill) {
+  return compile_dampers(deck, threads, backend,
+                         every_fill ? most_fills(run_excitation(deck, run)) : 1);
+}
+
+CompiledRun compile_map_run(const DamperModel& model, const Deck& deck, const MapRun& run) {
+  const ExcitationSpec x = run_excitation(deck, run);
+  CompiledRun c;
+  c.record = deck_record(deck);
+  c.record.text = run_text(deck, run);
+  c.scene = place_dampers(model, deck, x, StructureSpec{});
+  BedSpec bed = deck.bed;
+  bed.file = run.bed_file;
+  OutputSpec output = deck.output;
+  output.file = run.file;
+  output.particles_every = 0;
+  output.energy = false;
+  c.plan = plan_of(x, bed, output, c.scene);
+  c.bed_where = deck.where("bed.file");
+  c.changes = [text = c.record.text, bed = c.plan.bed](const Results& saved, const Scene& scene) {
+    return changes_since(saved, text, [&] { return scene_identity(scene, bed); });
+  };
+  return c;
 }
 
 MapTable map_rows(const std::vector<MapRun>& runs, const std::vector<Results>& results) {
@@ -203,12 +225,14 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
   const std::vector<MapRun> runs = map_runs(deck, "runs");
   double low = runs.front().points.front().amplitude, high = low;
   std::size_t points = 0;
+  std::optional<DamperModel> model;  // every run's dampers
   for (const MapRun& run : runs) {
     for (const PlanPoint& p : run.points)
       low = std::min(low, p.amplitude), high = std::max(high, p.amplitude);
     points += run.points.size();
     try {
-      compile_map_run(deck, run, threads, backend);
+      if (!model) model = map_model(deck, run, threads, backend, true);
+      compile_map_run(*model, deck, run);
     } catch (const InputError& e) {
       throw InputError(std::string(e.what()) + " (in [map], " +
                        (!run.stepped
@@ -246,15 +270,19 @@ std::optional<Results> finished_run(const Deck& deck, const MapRun& run) {
   std::error_code ignored;
   if (!fs::exists(run.file, ignored)) return std::nullopt;
   Results done = read_results(run.file);
-  if (const std::string changed = changes_since(done, prescribed_deck(deck, run)); !changed.empty())
+  if (const std::string changed =
+          changes_since(done, run_text(deck, run), [&] { return run_identity(deck, run); });
+      !changed.empty())
     throw InputError(run.file + ": a run of another map (" + changed +
                      "); run the map anew with --force");
   return done;
 }
 
-// Runs grid run k (0-based) of `runs` into its file, from its checkpoint with `resume`.
+// Runs grid run k (0-based) of `runs` into its file, from its checkpoint with `resume`; `model`
+// gives the map's dampers (compiled once, when first asked).
 void run_grid_run(const Deck& deck, const std::vector<MapRun>& runs, std::size_t k,
-                  const MapOptions& options, bool resume, const std::string& folder) {
+                  const MapOptions& options, bool resume, const std::string& folder,
+                  const std::function<const DamperModel&()>& model) {
   const MapRun& run = runs[k];
   const std::string& file = run.file;
   std::error_code ignored;
@@ -275,7 +303,7 @@ void run_grid_run(const Deck& deck, const std::vector<MapRun>& runs, std::size_t
     const InterruptScope interrupts;
     refuse_whole_sweep(deck);
     const std::unique_ptr<OutputLock> lock = claim_output(file, o.force);
-    run_compiled(compile_map_run(deck, run, o.threads, o.backend), file, o);
+    run_compiled(compile_map_run(model(), deck, run), file, o);
   } catch (const Interrupted& e) {
     throw Interrupted(std::string(e.what()) + "; finished map runs are in " + folder +
                       ", continue the map with pdsim map --resume");
@@ -320,9 +348,9 @@ RunReport submit_map(const Deck& deck, const MapOptions& options, const std::str
     return {"",
             note + "nothing to submit: " + pdsim_command("map", deck.path, path, "", " --collect") +
                 " writes the map once every run has finished"};
+  const DamperModel model = map_model(deck, runs.front(), threads, options.backend, true);
   for (int k : job.tasks) {
-    const CompiledRun run =
-        compile_map_run(deck, runs[static_cast<std::size_t>(k - 1)], threads, options.backend);
+    const CompiledRun run = compile_map_run(model, deck, runs[static_cast<std::size_t>(k - 1)]);
     job.memory_mib = std::max(job.memory_mib, memory_estimate_mib(run.plan, run.scene));
   }
   job.name = "pdsim-" + fs::path(path).stem().string();
@@ -368,10 +396,15 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
     fs::create_directories(folder, ignored);
   }
   if (options.slurm) return submit_map(deck, options, path, folder, runs);
+  std::optional<DamperModel> compiled;
+  const auto model = [&]() -> const DamperModel& {
+    if (!compiled) compiled = map_model(deck, runs.front(), options.threads, options.backend, true);
+    return *compiled;
+  };
   if (options.run > 0) {  // a Slurm task: its run, kept when finished, else continued
     const auto k = static_cast<std::size_t>(options.run - 1);
     if (finished_run(deck, runs[k])) return {"", runs[k].file + ": finished earlier, kept"};
-    run_grid_run(deck, runs, k, options, true, folder);
+    run_grid_run(deck, runs, k, options, true, folder, model);
     return {"", "map run " + std::to_string(options.run) + " of " + std::to_string(runs.size()) +
                     " finished: " + runs[k].file};
   }
@@ -387,7 +420,7 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
       continue;
     }
     if (!done) {
-      run_grid_run(deck, runs, k, options, options.resume && !options.force, folder);
+      run_grid_run(deck, runs, k, options, options.resume && !options.force, folder, model);
       done = read_results(runs[k].file);
     }
     results.push_back(std::move(*done));
@@ -401,7 +434,7 @@ RunReport run_map(const Deck& deck, const MapOptions& options) {
   map.meta_numbers = results.front().meta_numbers;
   map.meta_text["deck"] = deck.text;
   map.meta_text["deck_path"] = deck.path;
-  map.meta_text["identity"] = identity_text(deck_identity(prescribed_deck(deck, runs.front())));
+  map.meta_text["identity"] = identity_text(run_identity(deck, runs.front()));
   map.meta_text["version"] = std::string(PDSIM_VERSION) + " (" + PDSIM_GIT + ")";
   map.meta_text.erase("coupling");  // a prescribed motion couples nothing
   for (Results& r : results)

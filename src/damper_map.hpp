@@ -43,10 +43,14 @@ struct MapRun {
 // following its motion). Throws InputError for a deck without [map] or [[damper]].
 std::vector<MapRun> map_runs(const Deck& deck, const std::string& folder);
 
-// A map run compiled: the deck's dampers on a prescribed host (no structure) and the run's plan;
-// its /meta/deck is the deck's text with a note of the run. `every_fill`: as build_scene().
-CompiledRun compile_map_run(const Deck& deck, const MapRun& run, int threads,
-                            std::optional<Backend> backend, bool every_fill = true);
+// The map's dampers, compiled once for all its runs (`run`: any of them); `every_fill`: as
+// build_scene().
+DamperModel map_model(const Deck& deck, const MapRun& run, int threads,
+                      std::optional<Backend> backend, bool every_fill);
+
+// A map run compiled: `model` (the deck's dampers, map_model()) on a prescribed host, and the
+// run's plan; its /meta/deck is the deck's text with a note of the run.
+CompiledRun compile_map_run(const DamperModel& model, const Deck& deck, const MapRun& run);
 
 // /map from the runs' /prescribed tables (results[k] is runs[k]'s).
 MapTable map_rows(const std::vector<MapRun>& runs, const std::vector<Results>& results);

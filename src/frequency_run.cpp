@@ -39,7 +39,7 @@ FrequencyRun::FrequencyRun(const Scene& scene, const RunPlan& plan, Progress pro
   // Before anything is measured the bed moves with its container: a rigid mass carrying its
   // weight's component along the structure's direction.
   const double along =
-      scene.gravity && scene.structure ? dot(*scene.gravity, scene.structure_spec.direction) : 0.0;
+      scene.gravity && scene.structure ? dot(*scene.gravity, scene.direction) : 0.0;
   for (const DamperScene& d : scene.dampers) {
     effective_mass_.push_back(d.particle_mass);
     effective_damping_.push_back(0.0);

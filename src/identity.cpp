@@ -143,7 +143,7 @@ Identity scene_identity(const Scene& scene, const BedSpec& bed) {
     Hash h;
     for (const ParticleState& p : d.engine.particles) h.add(p.position);
     add("bed.damper[" + std::to_string(k) + "].fill",
-        "seed " + std::to_string(d.spec.particles.seed) + ", positions " + h.text());
+        "seed " + std::to_string(d.particles.seed) + ", positions " + h.text());
   }
   return id;
 }

@@ -86,14 +86,14 @@ Plan plan_run(const RunPlan& plan, const Scene& scene, int jobs) {
   return {std::move(first), make, side_by_side};
 }
 
+}  // namespace
+
 DeckRecord deck_record(const Deck& deck) {
   DeckRecord r{deck.text, deck.path, deck.title, ""};
   if (deck.point > 0)
     r.sweep_point = std::to_string(deck.point) + ": " + deck.sweep.describe(deck.point);
   return r;
 }
-
-}  // namespace
 
 int runs_side_by_side(const RunPlan& plan, const Scene& scene, int jobs) {
   return std::max(1, std::min(side_by_side_tasks(plan), jobs > 0 ? jobs : total_threads(scene)));
@@ -173,25 +173,32 @@ Identity deck_identity(const Deck& deck) {
 }
 
 std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene) {
+  return changes_since(saved, deck.text,
+                       [&] { return scene ? deck_identity(deck, *scene) : deck_identity(deck); });
+}
+
+std::string changes_since(const Results& saved, const std::string& text_now,
+                          const std::function<Identity()>& now) {
   const auto kept = [](const std::string& key) {
     return key == "title" || key == "solver.threads" || key.rfind("cluster.", 0) == 0;
   };
   std::string out;
   const auto text = saved.meta_text.find("deck");
   for (const DeckChange& c :
-       deck_changes(text == saved.meta_text.end() ? "" : text->second, deck.text))
+       deck_changes(text == saved.meta_text.end() ? "" : text->second, text_now))
     if (!kept(c.key))
       out += (out.empty() ? "" : "; ") + c.key + ": " + c.before + " then, " + c.after + " now";
   // What the deck's text does not hold: a mesh file's triangles, a default of this pdsim.
   const auto id = saved.meta_text.find("identity");
   if (!out.empty() || id == saved.meta_text.end()) return out;
-  Identity now;
+  Identity identity;
   try {
-    now = scene ? deck_identity(deck, *scene) : deck_identity(deck);
+    identity = now();
   } catch (const InputError& e) {
     return std::string("the deck is refused now: ") + e.what();
   }
-  return identity_difference(parse_identity(id->second), now, IdentityScope::bed, "then", "now");
+  return identity_difference(parse_identity(id->second), identity, IdentityScope::bed, "then",
+                             "now");
 }
 
 // Free space below which a run warns before it starts, bytes.

@@ -64,6 +64,13 @@ Identity deck_identity(const Deck& deck);
 // changed but keys that cannot alter finished points (title, solver.threads, [cluster]:
 // io/decks.md).
 std::string changes_since(const Results& saved, const Deck& deck, const Scene* scene = nullptr);
+// The same for a run whose /meta/deck is `text`, its identity now `now()` (asked only when the
+// keys agree; an InputError from it is the deck refused now).
+std::string changes_since(const Results& saved, const std::string& text,
+                          const std::function<Identity()>& now);
+
+// What a run's /meta says of the deck that made it.
+DeckRecord deck_record(const Deck& deck);
 
 // Refuses a deck with a [sweep] table (not one of its points): it runs point by point.
 void refuse_whole_sweep(const Deck& deck);

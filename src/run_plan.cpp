@@ -13,8 +13,8 @@ double RunPlan::highest_frequency() const {
   return top;
 }
 
-RunPlan plan_of(const Deck& deck, const Scene& scene) {
-  const ExcitationSpec& x = deck.excitation;
+RunPlan plan_of(const ExcitationSpec& x, const BedSpec& bed, const OutputSpec& output,
+                const Scene& scene) {
   RunPlan plan;
   // Every kind runs as points: its frequencies, or a free decay's one point (no frequency).
   const std::vector<double>& frequencies = x.frequencies;
@@ -35,7 +35,7 @@ RunPlan plan_of(const Deck& deck, const Scene& scene) {
   plan.settle = x.settle;
   plan.duration = x.duration;
   plan.initial_displacement = x.initial_displacement;
-  plan.bed = deck.bed;
+  plan.bed = bed;
   // Rigid contacts approaching slower than the rest speed end at rest, and velocities are met
   // to the solver's tolerance: a bed is settled once no particle moves faster than their sum
   // (measured on the Saeki bed: at the default 1e-3 m/s it jittered above it for 6 s; at the
@@ -43,8 +43,12 @@ RunPlan plan_of(const Deck& deck, const Scene& scene) {
   if (!scene.dampers.empty())
     if (const auto& p = scene.dampers[0].engine.nonsmooth)
       plan.bed.speed = std::max(plan.bed.speed, p->rest_speed + p->tolerance);
-  plan.output = deck.output;
+  plan.output = output;
   return plan;
+}
+
+RunPlan plan_of(const Deck& deck, const Scene& scene) {
+  return plan_of(deck.excitation, deck.bed, deck.output, scene);
 }
 
 }  // namespace pdsim

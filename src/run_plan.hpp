@@ -47,8 +47,11 @@ struct RunPlan {
   bool independent() const { return start == FrequencyStart::independent; }
 };
 
-// The deck's excitation, [excitation.settle], [bed] and [output] as the run of `scene` (built
-// from the same deck) takes them.
+// The excitation `x`, how the bed settles and what the run records, as the run of `scene` (built
+// for `x`) takes them.
+RunPlan plan_of(const ExcitationSpec& x, const BedSpec& bed, const OutputSpec& output,
+                const Scene& scene);
+// The deck's excitation, [excitation.settle], [bed] and [output], for `scene` built from it.
 RunPlan plan_of(const Deck& deck, const Scene& scene);
 
 }  // namespace pdsim

@@ -39,14 +39,12 @@ ContainerGeometry geometry_of(const ContainerSpec& c) {
 }
 
 // A sphere of radius r at p (container frame) lies inside (the fill).
-bool inside(const ContainerSpec& c, Vec3 p, double r) {
-  const ContainerGeometry g = geometry_of(c);
-  return with_shape(c.shape, [&](auto shape) { return decltype(shape)::inside(p, r, g); });
+bool inside(WallShape shape, const ContainerGeometry& g, Vec3 p, double r) {
+  return with_shape(shape, [&](auto s) { return decltype(s)::inside(p, r, g); });
 }
 
-double container_volume(const ContainerSpec& c) {
-  const ContainerGeometry g = geometry_of(c);
-  return with_shape(c.shape, [&](auto shape) { return decltype(shape)::volume(g); });
+double container_volume(WallShape shape, const ContainerGeometry& g) {
+  return with_shape(shape, [&](auto s) { return decltype(s)::volume(g); });
 }
 
 }  // namespace
@@ -78,15 +76,14 @@ Orientation orientation_of(const ContainerSpec& c) {
   return o;
 }
 
-std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<double>& radius,
+std::vector<Vec3> fill_particles(WallShape shape, const ContainerGeometry& g,
+                                 const ParticleSpec& particles, const std::vector<double>& radius,
                                  const SourcePos& where, const std::string& key) {
-  const ContainerSpec& c = damper.container;
-  const ContainerGeometry g = geometry_of(c);
   const std::size_t n = radius.size();
   const double r_max = *std::max_element(radius.begin(), radius.end());
   std::vector<Vec3> centres;
   centres.reserve(n);
-  if (damper.particles.fill == Fill::lattice) {
+  if (particles.fill == Fill::lattice) {
     // Simple cubic lattice (io/decks.md): spacing 1.02 d, first centre 0.51 d from each lower wall.
     const double d = 2 * r_max, spacing = 1.02 * d;
     const Vec3 start = -1.0 * g.half_size + Vec3{0.51 * d, 0.51 * d, 0.51 * d};
@@ -99,7 +96,7 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
         for (int i = 0; centres.size() < n; ++i) {
           const double x = start.x + i * spacing;
           if (x > g.half_size.x - r_max) break;
-          if (inside(c, {x, y, z}, r_max)) centres.push_back({x, y, z});
+          if (inside(shape, g, {x, y, z}, r_max)) centres.push_back({x, y, z});
         }
       }
     }
@@ -114,14 +111,14 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
   // hours on large counts: refused by volume first.
   double volume = 0;
   for (double ri : radius) volume += 4.0 / 3.0 * kPi * ri * ri * ri;
-  const double fraction = volume / container_volume(c);
+  const double fraction = volume / container_volume(shape, g);
   if (fraction > kRandomFillLimit)
     throw InputError(where, key,
                      "a random fill of fill fraction " + number(fraction) + ": expected at most " +
                          number(kRandomFillLimit) +
                          " (random placement jams near 0.38); use fill = \"lattice\", fewer "
                          "particles or a larger container");
-  std::mt19937_64 gen(damper.particles.seed);
+  std::mt19937_64 gen(particles.seed);
   // Cells at least 2 r_max wide hold every overlapping partner in the adjacent ones, whatever
   // their width (the same centres come out); about one a particle at most, so that a container
   // far wider than its particles (a 1 m box of 0.5 mm spheres) needs no more cells than spheres.
@@ -148,7 +145,7 @@ std::vector<Vec3> fill_particles(const DamperSpec& damper, const std::vector<dou
       const Vec3 q{(2 * uniform(gen) - 1) * (g.half_size.x - r),
                    (2 * uniform(gen) - 1) * (g.half_size.y - r),
                    (2 * uniform(gen) - 1) * (g.half_size.z - r)};
-      if (!inside(c, q, r)) continue;
+      if (!inside(shape, g, q, r)) continue;
       const int ci = cell_coord(q.x, g.half_size.x, nx), cj = cell_coord(q.y, g.half_size.y, ny),
                 ck = cell_coord(q.z, g.half_size.z, nz);
       bool free = true;
@@ -178,12 +175,19 @@ Locate locate(const Deck& deck) {
   return [&deck](const std::string& key) { return deck.where(key); };
 }
 
+// Where the deck's dampers are bolted to its beam.
+std::vector<Mount> mounts_of(const Deck& deck) {
+  std::vector<Mount> mounts;
+  for (const DamperSpec& d : deck.dampers) mounts.push_back({d.attach_node, d.attach_x});
+  return mounts;
+}
+
 // What a run will count and compute must be representable, so that `check` refuses what the
 // run would overflow on: a period's steps in an int (FrequencyRun::configure), and structural
-// matrices that stay finite at every frequency of the deck.
-void check_feasible(const Deck& deck, const Scene& s) {
-  const std::vector<double>& frequencies = deck.excitation.frequencies;
-  const std::string& f_key = deck.excitation.frequencies_key;
+// matrices that stay finite at every frequency of the excitation.
+void check_feasible(const Deck& deck, const ExcitationSpec& x, const Scene& s) {
+  const std::vector<double>& frequencies = x.frequencies;
+  const std::string& f_key = x.frequencies_key;
   const std::string dt_key = deck.solver.dt > 0 ? "solver.dt" : f_key;
   const std::string step_key = deck.solver.dt > 0 ? "solver.dt" : "solver.dt_safety";
   if (!(s.dt >= kMinDt))
@@ -232,10 +236,10 @@ struct Drawn {
 };
 Drawn draw_fill(const DamperScene& ds, std::uint64_t seed, const SourcePos& where,
                 const std::string& key) {
-  DamperSpec d = ds.spec;
-  d.particles.seed = seed;
+  ParticleSpec p = ds.particles;
+  p.seed = seed;
   Drawn f;
-  f.radius = particle_radii(d.particles);
+  f.radius = particle_radii(p);
   const double r_max = *std::max_element(f.radius.begin(), f.radius.end());
   const double smallest_extent = smallest_inner_size(ds.engine.shape, ds.engine.geometry);
   if (2 * r_max >= smallest_extent)
@@ -243,7 +247,7 @@ Drawn draw_fill(const DamperScene& ds, std::uint64_t seed, const SourcePos& wher
                      "particle diameter " + number(2 * r_max) +
                          " m does not fit in the container (smallest inner size " +
                          number(smallest_extent) + " m)");
-  f.centres = fill_particles(d, f.radius, where, key);
+  f.centres = fill_particles(ds.engine.shape, ds.engine.geometry, p, f.radius, where, key);
   return f;
 }
 
@@ -252,7 +256,6 @@ Drawn draw_fill(const DamperScene& ds, std::uint64_t seed, const SourcePos& wher
 void fill_damper(DamperScene& ds, std::uint64_t seed, const SourcePos& where,
                  const std::string& key) {
   Drawn drawn = draw_fill(ds, seed, where, key);
-  const DamperSpec& d = ds.spec;
   EngineConfig& e = ds.engine;
   e.radius = std::move(drawn.radius);
   const std::vector<Vec3>& centres = drawn.centres;
@@ -265,12 +268,12 @@ void fill_damper(DamperScene& ds, std::uint64_t seed, const SourcePos& where,
     volume += 4.0 / 3.0 * kPi * std::pow(e.radius[i], 3);
   }
   ds.particle_mass = volume * e.density;
-  ds.fill_fraction = volume / container_volume(d.container);
+  ds.fill_fraction = volume / container_volume(e.shape, e.geometry);
 }
 
 // An explicit solver.dt against the scene's s.dt_limit, which `name` names and `why` explains:
 // refused above it unless solver.allow_unstable, then run with a warning of `risk`.
-void explicit_dt(const Deck& deck, Scene& s, const std::string& name, const std::string& why,
+void explicit_dt(const Deck& deck, DamperModel& s, const std::string& name, const std::string& why,
                  const std::string& risk) {
   if (!(deck.solver.dt > 0)) return;
   const std::string limit = name + " " + number(s.dt_limit) + " s";
@@ -297,8 +300,7 @@ constexpr double kNonsmoothLimit = 0.5;  // beyond half a radius a step contacts
 // The largest speed the containers reach (m/s): the motion's where it is prescribed; else the
 // bare structure's steady response at the run's frequencies (the particles as rigid mass: they
 // only take energy out, so it bounds the damped response), or its free decay's start.
-double container_speed_bound(const Deck& deck, const Scene& s) {
-  const ExcitationSpec& x = deck.excitation;
+double container_speed_bound(const ExcitationSpec& x, const Scene& s) {
   double v = 0;
   for (std::size_t k = 0; k < x.frequencies.size(); ++k) {
     const double omega = 2 * kPi * x.frequencies[k];
@@ -322,9 +324,11 @@ double container_speed_bound(const Deck& deck, const Scene& s) {
   return v;
 }
 
-// The non-smooth scene's step and constants (kernels/nonsmooth.hpp), once the structure and the
-// frequencies are known.
-void nonsmooth_step(const Deck& deck, Scene& s, double r_min) {
+// The non-smooth scene's step and constants (kernels/nonsmooth.hpp), once the host (`structure`,
+// built in `s`) and the excitation `x` are known.
+void nonsmooth_step(const Deck& deck, const ExcitationSpec& x, const StructureSpec& structure,
+                    Scene& s) {
+  const double r_min = s.r_min;
   const ContactSpec& contact = deck.contact;
   // A particle reaches twice the containers' speed off a wall, plus a fall across the largest
   // container.
@@ -334,7 +338,7 @@ void nonsmooth_step(const Deck& deck, Scene& s, double r_min) {
     const Vec3 h = world_half_size(d.engine.geometry.half_size, d.engine.orientation);
     fall = std::max(fall, std::sqrt(2 * g * 2 * std::max({h.x, h.y, h.z})));
   }
-  const double container = container_speed_bound(deck, s);
+  const double container = container_speed_bound(x, s);
   double speed = 2 * container + fall;
   std::string basis = "of r_min / " + number(speed) + " m/s (twice the containers' " +
                       number(container) + " m/s and a fall of " + number(fall) + " m/s)";
@@ -361,16 +365,15 @@ void nonsmooth_step(const Deck& deck, Scene& s, double r_min) {
   // the structure as infinitely heavy: the rebound off it is off by about (1 + e) m / M for a
   // particle of mass m on a structure of mass M (tests/src/coupling_test.cpp measures it). The
   // tight scheme recomputes the step with the structure's answer.
-  if (deck.coupling.scheme != CouplingScheme::tight && deck.structure.kind != StructureKind::none) {
-    const BeamSpec& b = deck.structure.beam;
-    const double structure = deck.structure.kind == StructureKind::sdof
-                                 ? deck.structure.mass
-                                 : b.density * b.area * b.length;
+  if (deck.coupling.scheme != CouplingScheme::tight && structure.kind != StructureKind::none) {
+    const BeamSpec& b = structure.beam;
+    const double host_mass =
+        structure.kind == StructureKind::sdof ? structure.mass : b.density * b.area * b.length;
     double heaviest = 0;
     for (const DamperScene& d : s.dampers)
       for (double r : d.engine.radius)
         heaviest = std::max(heaviest, sphere_mass(r, d.engine.density).mass);
-    const double error = (1 + contact.restitution) * heaviest / structure;
+    const double error = (1 + contact.restitution) * heaviest / host_mass;
     if (error > 1e-3) {
       const std::string w =
           "rigid contacts with " +
@@ -385,8 +388,9 @@ void nonsmooth_step(const Deck& deck, Scene& s, double r_min) {
 
 }  // namespace
 
-Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend, bool every_fill) {
-  Scene s;
+DamperModel compile_dampers(const Deck& deck, int threads, std::optional<Backend> backend,
+                            int fills) {
+  DamperModel s;
   const ContactSpec& contact = deck.contact;
   s.threads = threads > 0 ? threads : deck.solver.threads;
 
@@ -420,7 +424,7 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend,
   for (std::size_t k = 0; k < deck.dampers.size(); ++k) {
     const DamperSpec& d = deck.dampers[k];
     DamperScene ds;
-    ds.spec = d;
+    ds.particles = d.particles;
     const std::string key = "damper[" + std::to_string(k) + "].particles";
     const SourcePos at = deck.where(key);
     EngineConfig& e = ds.engine;
@@ -433,15 +437,12 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend,
     e.tangential = contact.tangential;
     e.rolling = contact.rolling_friction > 0;
     e.orientation = orientation_of(d.container);
-    // Follows the node's slope, or is laid along another axis.
-    e.rotating = deck.structure.kind == StructureKind::beam || !e.orientation.identity();
     if (deck.gravity && norm(*deck.gravity) > 0) e.gravity = deck.gravity;
     e.contact = params;
     e.recompute = deck.coupling.scheme == CouplingScheme::tight;  // iterates each step
     fill_damper(ds, d.particles.seed, at, key);
     // Every other fill a run may draw (scene_of_fill), drawn here once: a seed whose random fill
     // jams, or whose drawn diameters do not fit, is refused by check, not hours into a run.
-    const int fills = every_fill ? most_fills(deck.excitation) : 1;
     for (int r = 1; r < fills; ++r) {
       try {
         draw_fill(ds, d.particles.seed + static_cast<std::uint64_t>(r), at, key);
@@ -457,9 +458,10 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend,
     if (r_least < r_min) r_min = r_least, density_min = e.density;
     s.dampers.push_back(std::move(ds));
   }
+  s.r_min = r_min;
 
   // Time step: a fraction of the contact time (linear) or of the Rayleigh time (Hertz); for
-  // non-smooth contacts below, once the structure is built.
+  // non-smooth contacts once the host is known (place_dampers()).
   if (!deck.dampers.empty() && !contact.nonsmooth) {
     const double mass_min = density_min * 4.0 / 3.0 * kPi * r_min * r_min * r_min;
     const TimeStepRule rule = with_normal_law(contact.model, [&](auto law) {
@@ -475,25 +477,33 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend,
     explicit_dt(deck, s, "the stability limit", " of this contact model",
                 "contacts are under-resolved and results may be shifted or blow up");
   }
+  return s;
+}
 
-  if (deck.structure.kind != StructureKind::none) {
-    s.structure = build_structure(deck);
+Scene place_dampers(const DamperModel& model, const Deck& deck, const ExcitationSpec& x,
+                    const StructureSpec& structure) {
+  Scene s;
+  static_cast<DamperModel&>(s) = model;
+  const bool hosted = structure.kind != StructureKind::none;
+  for (DamperScene& d : s.dampers)  // follows the node's slope, or is laid along another axis
+    d.engine.rotating = structure.kind == StructureKind::beam || !d.engine.orientation.identity();
+  if (hosted) {
+    s.structure = build_structure(structure, mounts_of(deck), locate(deck));
     try {
       s.natural_hz = natural_frequencies(*s.structure);
     } catch (const SimulationError&) {
       throw_no_modes(locate(deck));
     }
   }
-  if (contact.nonsmooth && !deck.dampers.empty()) nonsmooth_step(deck, s, r_min);
-  if (deck.dampers.empty()) {
+  if (deck.contact.nonsmooth && !s.dampers.empty()) nonsmooth_step(deck, x, structure, s);
+  if (s.dampers.empty()) {
     // Bare structure: the exact propagator has no step limit; sample 256 steps a period.
-    const std::vector<double>& f = deck.excitation.frequencies;
+    const std::vector<double>& f = x.frequencies;
     const double f_top = f.empty() ? 100.0 : *std::max_element(f.begin(), f.end());
     s.dt = deck.solver.dt > 0 ? deck.solver.dt : 1.0 / (256 * f_top);
     s.dt_basis = deck.solver.dt > 0 ? "given in the deck" : "1/256 of the shortest period";
   }
-  if (deck.coupling.scheme == CouplingScheme::interleaved && !deck.dampers.empty() &&
-      deck.structure.kind != StructureKind::none) {
+  if (deck.coupling.scheme == CouplingScheme::interleaved && !s.dampers.empty() && hosted) {
     // The impulse kick is consistent only for modes the exchange interval resolves; stiff FE
     // modes (omega h >> 1) answer it with aliased or growing motion (tests/src: a full
     // 20-element cantilever loses the damper's moment or blows up).
@@ -511,20 +521,31 @@ Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend,
   if (deck.coupling.scheme == CouplingScheme::tight && deck.coupling.every != 1)
     throw InputError(deck.where("coupling.every"), "coupling.every",
                      "tight coupling iterates every DEM step: expected 1");
-  check_feasible(deck, s);
+  check_feasible(deck, x, s);
   for (auto& d : s.dampers) d.engine.dt = s.dt;
-  s.structure_spec = deck.structure;
+  s.integrator = structure.integrator;
+  s.direction = structure.direction;
+  if (structure.kind == StructureKind::beam) {
+    const Vec3 axis = cross(structure.beam.axis, structure.direction);
+    s.rotation_axis = (1.0 / norm(axis)) * axis;
+  }
   s.coupling = deck.coupling;
-  s.motion_axis = deck.excitation.motion.axis;
+  s.motion_axis = x.motion.axis;
   s.gravity = deck.gravity;
   return s;
+}
+
+Scene build_scene(const Deck& deck, int threads, std::optional<Backend> backend, bool every_fill) {
+  const int fills = every_fill ? most_fills(deck.excitation) : 1;
+  return place_dampers(compile_dampers(deck, threads, backend, fills), deck, deck.excitation,
+                       deck.structure);
 }
 
 Scene scene_of_fill(const Scene& first, int fill) {
   Scene s = first;
   for (DamperScene& d : s.dampers) {
     try {  // build_scene() drew every fill a run may ask for: this cannot refuse
-      fill_damper(d, d.spec.particles.seed + static_cast<std::uint64_t>(fill), SourcePos{}, "");
+      fill_damper(d, d.particles.seed + static_cast<std::uint64_t>(fill), SourcePos{}, "");
     } catch (const InputError& error) {
       throw SimulationError("fill " + std::to_string(fill + 1) +
                             " could not be drawn: " + error.what());
@@ -534,9 +555,7 @@ Scene scene_of_fill(const Scene& first, int fill) {
 }
 
 LinearStructure build_structure(const Deck& deck) {
-  std::vector<Mount> mounts;
-  for (const DamperSpec& d : deck.dampers) mounts.push_back({d.attach_node, d.attach_x});
-  return build_structure(deck.structure, mounts, locate(deck));
+  return build_structure(deck.structure, mounts_of(deck), locate(deck));
 }
 
 std::vector<double> structure_frequencies(const Deck& deck) {

@@ -49,7 +49,7 @@ for deck in "${decks[@]}"; do
   done
   compare "$work/old/$name.h5" "$work/new/$name.h5"
 done
-# A sweep (4 points), a map (4 points) and its prediction.
+# A sweep (4 points), a map (4 points, each run's file too) and its prediction.
 for side in old new; do
   bin=$old; [[ $side == new ]] && bin=$new
   (cd "$work/$side" && "$bin" sweep --threads 1 --jobs 1 -o sweep tiny_sweep.toml \
@@ -58,7 +58,19 @@ for side in old new; do
     echo "$side: the sweep, map or prediction failed (exit $?)"
 done
 for point in "$work"/new/sweep/p*.h5; do compare "$work/old/sweep/$(basename "$point")" "$point"; done
+for run in "$work"/new/map_runs/m*.h5; do compare "$work/old/map_runs/$(basename "$run")" "$run"; done
 compare "$work/old/map.h5" "$work/new/map.h5"
+# The same map with rigid contacts, stepped up and down: each run its own step and bed.
+for side in old new; do
+  bin=$old; [[ $side == new ]] && bin=$new
+  sed -e 's/model = "linear"/model = "nonsmooth"/' -e '/^stiffness = 2000/d' -e '/^young/d' \
+    -e '/^tangential/d' "$work/$side/tiny_map.toml" > "$work/$side/rigid_map.toml"
+  echo 'steps = "both"' >> "$work/$side/rigid_map.toml"
+  (cd "$work/$side" && "$bin" map --quiet --threads 1 --jobs 1 -o rigid.h5 rigid_map.toml \
+    > rigid.log 2>&1) || echo "$side: the rigid map failed (exit $?)"
+done
+for run in "$work"/new/rigid_runs/*.h5; do compare "$work/old/rigid_runs/$(basename "$run")" "$run"; done
+compare "$work/old/rigid.h5" "$work/new/rigid.h5"
 compare "$work/old/hb.h5" "$work/new/hb.h5"
 # The bench scenes: their final states' fingerprints (the last column, every digit).
 for side in old new; do

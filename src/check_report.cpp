@@ -60,17 +60,16 @@ std::string check_report(const Deck& deck, const Scene& scene) {
     s << "steps per period: " << static_cast<long>(std::ceil(1.0 / (f_top * scene.dt))) << " at "
       << f_top << " Hz\n";
   }
-  const SettleSpec& settle = plan.settle;
+  const SettleRule& settle = plan.settle;
   if (plan.steady)
     s << "frequencies: " << plan.points.size() << ", start = " << start_name(plan.start)
       << "; steady when the 95 % interval is within " << 100 * settle.tolerance << " % ("
       << settle.min_periods << " to " << settle.max_periods << " periods, " << settle.batches
-      << " batches; " << settle.realisations
-      << (settle.max_realisations > settle.realisations
-              ? " to " + std::to_string(settle.max_realisations) +
-                    " fills, added where they disagree"
-          : settle.realisations > 1 ? " fills"
-                                    : " fill")
+      << " batches; " << plan.first_fills
+      << (plan.most_fills > plan.first_fills
+              ? " to " + std::to_string(plan.most_fills) + " fills, added where they disagree"
+          : plan.first_fills > 1 ? " fills"
+                                 : " fill")
       << ")\n";
   // A bed file the run would refuse is refused here, before any work (a run reads it whether
   // or not the bed settles).

@@ -218,7 +218,7 @@ void FrequencyRun::run_period() {
 // The periods after the predicted start's refinement, and how they are judged.
 std::pair<std::vector<std::complex<double>>, SteadyStateCriteria> FrequencyRun::measured() const {
   const Ongoing& o = *ongoing_;
-  const SettleSpec& settle = plan_.settle;
+  const SettleRule& settle = plan_.settle;
   const auto all =
       o.tracker.series(o.prescribed ? &PeriodSummary::force : &PeriodSummary::displacement);
   // Each fill settles on its own to the tolerance: its value is one member of the point's
@@ -257,7 +257,7 @@ bool FrequencyRun::look(const Floors& floors) {
 }
 
 void FrequencyRun::begin_frequency(double frequency, double amplitude, FrequencyStart start) {
-  const SettleSpec& settle = plan_.settle;
+  const SettleRule& settle = plan_.settle;
   const bool prescribed = plan_.prescribed;
   const int samples = configure(frequency, amplitude);
   const bool fixed = plan_.fixed;

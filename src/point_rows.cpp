@@ -17,7 +17,7 @@ Ensemble judge_fills(const std::vector<FrequencyPoint>& runs, const RunPlan& pla
   for (const FrequencyPoint& p : runs)
     fills.push_back({p.judged.mean, p.judged.amplitude_ci, p.judged.phase_ci, p.judged.batches - 1,
                      settled(p.judged), p.judged.drift});
-  const bool last = static_cast<int>(runs.size()) >= plan.settle.max_realisations;
+  const bool last = static_cast<int>(runs.size()) >= plan.most_fills;
   Ensemble e = judge_ensemble(fills, plan.settle.tolerance, last);
   if (plan.fixed) {
     const bool all = std::all_of(runs.begin(), runs.end(),

@@ -103,7 +103,7 @@ double simulated_time_bound(const RunPlan& plan) {
   if (!plan.steady) return plan.duration * static_cast<double>(plan.points.size());
   double simulated = 0;
   for (const PlanPoint& p : plan.points)
-    simulated += plan.settle.max_realisations * plan.settle.max_periods / p.frequency;
+    simulated += plan.most_fills * plan.settle.max_periods / p.frequency;
   return simulated;
 }
 

@@ -32,7 +32,8 @@ RunPlan plan_of(const ExcitationSpec& x, const BedSpec& bed, const OutputSpec& o
   plan.amplitude_steps = !x.amplitudes.empty();
   plan.first_fills = first_fills(x);
   plan.most_fills = most_fills(x);
-  plan.settle = x.settle;
+  const SettleSpec& s = x.settle;
+  plan.settle = {s.min_periods, s.max_periods, s.tolerance, s.batches, s.average_periods};
   plan.duration = x.duration;
   plan.initial_displacement = x.initial_displacement;
   plan.bed = bed;

@@ -20,6 +20,16 @@ struct PlanPoint {
   int sweep = 1;         // +1 sweeping up, -1 down
 };
 
+// When a fill's point is steady (src/steady_state.hpp): [excitation.settle] but for its fill
+// counts, which are RunPlan::first_fills and most_fills.
+struct SettleRule {
+  int min_periods = 0;      // never converged before this many periods
+  int max_periods = 0;      // a point stops here, converged or not
+  double tolerance = 0;     // relative 95 % half-width of the first-harmonic amplitude
+  int batches = 0;          // batch means an interval needs
+  int average_periods = 0;  // 0: the stationary periods found; N: the last N periods
+};
+
 struct RunPlan {
   std::vector<PlanPoint> points;  // in the order they run; never empty
   ExcitationInput input = ExcitationInput::force;
@@ -35,7 +45,7 @@ struct RunPlan {
   bool amplitude_steps = false;     // the points' amplitudes differ (pdsim map): named by them
   int first_fills = 1;              // fills a point starts with (fill seeds seed, seed+1, ...)
   int most_fills = 1;               // fills a point may grow to while its mean is not known
-  SettleSpec settle;                // when a fill's point is steady, and its ensemble's
+  SettleRule settle;                // when a fill's point is steady, and its ensemble's
   double duration = 0;              // s: a sine's, a free decay's, a fixed prescribed point's
   double initial_displacement = 0;  // m, a free decay's
   BedSpec bed;  // how the bed settles before the first point (its speed as the contacts allow)

@@ -101,6 +101,7 @@ CoupledSystem::CoupledSystem(const Scene& scene)
     integrator_->q = integrator_->v = Eigen::VectorXd::Zero(structure_.size());
   } else {
     prescribed_axis_ = scene.motion_axis;
+    rigid_ = !scene.dampers.empty() && scene.dampers[0].engine.nonsmooth.has_value();
     every_ = 1;
   }
   for (const DamperScene& d : scene.dampers) engines_.push_back(make_engine(d.engine));
@@ -272,12 +273,22 @@ void CoupledSystem::advance() {
 
 void CoupledSystem::step_prescribed() {
   const Vec3 axis = *prescribed_axis_;
-  const ContainerKinematics moving = container_now(0);  // every container moves alike
+  ContainerKinematics moving = container_now(0);  // every container moves alike
   const double u = dot(moving.position, axis);
   last_ = StepRecord{};
   last_.time = time_;
   last_.displacement = u;
   last_.velocity = dot(moving.velocity, axis);
+  if (rigid_) {
+    // Rigid contacts hold the walls' velocity through the step, and their impulses meet the
+    // velocity conditions at its end: the chord's velocity moves the walls where the motion has
+    // them then. Their velocity at the step's start lagged the motion by half a step, which a
+    // rolling ball's reaction showed as a loss factor of omega dt / 2 (0.024 at the default step
+    // on a 15 Hz map; validation/results/nonsmooth.md).
+    const double x = drive_.amplitude;
+    moving.velocity =
+        (x * (std::sin(drive_.angle(time_ + dt_)) - std::sin(drive_.angle(time_))) / dt_) * axis;
+  }
   for (std::size_t k = 0; k < engines_.size(); ++k) {
     ContainerKinematics kin = moving;  // computed once a step; each container its own axes
     set_axes(kin, orientation(k));

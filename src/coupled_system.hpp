@@ -146,6 +146,7 @@ class CoupledSystem {
   Vec3 direction_;
   Vec3 rotation_axis_;  // beam: axis x direction, about which a node's slope turns a damper
   std::optional<Vec3> prescribed_axis_;  // no structure: the containers move along it
+  bool rigid_ = false;                   // the dampers' contacts are non-smooth
   const LinearStructure& structure_;     // the scene's (an empty one without a structure)
   std::unique_ptr<StructureIntegrator> integrator_;
   std::vector<std::unique_ptr<DemEngine>> engines_;

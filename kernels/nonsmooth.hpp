@@ -36,7 +36,8 @@ struct NonsmoothParams {
 // slower than twice what gravity adds in a step (without gravity 1e-3 of the speed) end at
 // rest, and overlaps recover at that speed; velocities are met to it (slower motion is rest:
 // a tenth of it took 2.8x the iterations on the shaken Saeki pile, 62 against 22 a step).
-// The deck's keys replace these where given (src/scene.cpp).
+// A scene lowers the tolerance to a tenth of its containers' speed where that is slower, and
+// the deck's keys replace these where given (src/scene.cpp).
 inline NonsmoothParams nonsmooth_params(double restitution, double friction, double speed,
                                         double dt, double g) {
   NonsmoothParams p;

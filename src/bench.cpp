@@ -230,7 +230,9 @@ void bench_flow(const char* title, EngineConfig config, Shake s, const BenchOpti
 }
 
 // The same scene with rigid contacts (kernels/nonsmooth.hpp), its step as a scene takes it:
-// `safety` r over twice the container's peak speed plus a fall across the container.
+// `safety` r over twice the container's peak speed plus a fall across the container. The walls
+// keep their velocity at the step's start (a prescribed scene's move at the chord's), and the
+// tolerance is the rest speed (a scene's too where a tenth of its containers' speed is faster).
 EngineConfig rigid_config(EngineConfig c, Shake s, double safety) {
   const double r = c.radius.front(), g = 9.81;
   const double speed =

@@ -98,6 +98,9 @@ Identity scene_identity(const Scene& scene, const BedSpec& bed) {
       add("contact.restitution", exact(n.restitution));
       add("contact.friction", exact(n.friction));
       add("contact.max_iterations", std::to_string(n.max_iterations));
+      // How the walls move through a step (src/coupled_system.cpp): a run or map made before
+      // prescribed walls moved at the chord's velocity is another model.
+      add("contact.walls", "the chord's velocity under a prescribed motion, else the start's");
       // The thresholds the deck sets decide the model; derived ones follow each run's motion.
       const auto given = [](double v) { return v > 0 ? exact(v) + " m/s" : "derived"; };
       add("contact.rest_speed", given(scene.rest_speed_given));

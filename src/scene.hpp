@@ -16,7 +16,7 @@
 
 namespace pdsim {
 
-struct Deck;  // io/deck.hpp: only build_scene() and the deck helpers below read it
+struct Deck;  // io/deck.hpp: only the compile functions and the deck helpers below read it
 
 struct DamperScene {
   EngineConfig engine;       // dt is filled per run segment by the solver

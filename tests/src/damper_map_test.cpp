@@ -196,6 +196,18 @@ TEST_CASE(
       run_predict(parse_deck(tighter, "tight.toml"), predict),
       doctest::Contains("contact.tolerance: derived in the map, 1e-04 m/s in the deck"),
       InputError);
+  // A map made before the walls moved at the chord's velocity (its identity without the line)
+  // is another model's: refused by name.
+  Results older = read_results(options.output);
+  std::string& id = older.meta_text.at("identity");
+  const std::size_t line = id.find("contact.walls = ");
+  REQUIRE(line != std::string::npos);
+  id.erase(line, id.find('\n', line) + 1 - line);
+  const std::string older_map = (dir / "older_map.h5").string();
+  write_results(older_map, older, true, true);
+  predict.maps = {older_map};
+  CHECK_THROWS_WITH_AS(run_predict(deck, predict),
+                       doctest::Contains("contact.walls: absent in the map"), InputError);
   fs::remove_all(dir);
 }
 

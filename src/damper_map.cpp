@@ -226,13 +226,20 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
   double low = runs.front().points.front().amplitude, high = low;
   std::size_t points = 0;
   std::optional<DamperModel> model;  // every run's dampers
+  // Rigid contacts: each run's step and tolerance follow its motion (src/scene.cpp).
+  double dt_low = 1e300, dt_high = 0, tolerance_low = 1e300, tolerance_high = 0;
   for (const MapRun& run : runs) {
     for (const PlanPoint& p : run.points)
       low = std::min(low, p.amplitude), high = std::max(high, p.amplitude);
     points += run.points.size();
     try {
       if (!model) model = map_model(deck, run, threads, backend, true);
-      compile_map_run(*model, deck, run);
+      const Scene scene = compile_map_run(*model, deck, run).scene;
+      if (const auto& n = scene.dampers.front().engine.nonsmooth) {
+        dt_low = std::min(dt_low, scene.dt), dt_high = std::max(dt_high, scene.dt);
+        tolerance_low = std::min(tolerance_low, n->tolerance);
+        tolerance_high = std::max(tolerance_high, n->tolerance);
+      }
     } catch (const InputError& e) {
       throw InputError(std::string(e.what()) + " (in [map], " +
                        (!run.stepped
@@ -252,6 +259,15 @@ std::string check_map(const Deck& deck, int threads, std::optional<Backend> back
         : m.steps == MapSteps::up ? ", stepped up at each frequency"
                                   : ", each point from the settled bed")
     << "\n";
+  if (dt_high > 0)
+    s << "map runs, rigid contacts: the step " << number(dt_low) << " to " << number(dt_high)
+      << " s and the tolerance " << number(tolerance_low) << " to " << number(tolerance_high)
+      << " m/s, each run's following its motion"
+      << (m.steps != MapSteps::independent
+              ? "; a stepped run's tolerance follows its largest amplitude (set "
+                "contact.tolerance for its smallest)"
+              : "")
+      << "\n";
   return s.str();
 }
 

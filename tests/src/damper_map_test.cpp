@@ -169,6 +169,9 @@ TEST_CASE(
   MapOptions options = map_into(dir / "rigid_map.h5");
   const MapTable m = read_results(run_map(deck, options).output).map;
   REQUIRE(m.frequency.size() == 4);
+  // `check` gives the runs' steps and tolerances: the smallest, a tenth of the floor's speed
+  // at 0.1 g and 20 Hz, 0.1 x 0.1 g / (2 pi 20 Hz) = 7.804e-4 m/s.
+  CHECK(check_map(deck, 1, Backend::cpu).find("the tolerance 0.0007804 to ") != std::string::npos);
   for (const char* bed : {"bed_m001.h5", "bed_m002.h5", "bed_m003.h5", "bed_m004.h5"})
     CHECK(fs::exists(dir / "rigid_map_runs" / bed));
   CHECK_FALSE(fs::exists(dir / "rigid_map_runs" / "bed.h5"));

@@ -357,9 +357,11 @@ class Driver::Impl {
     // took min_periods for each, and the running point overtook that: "100 %, ETA 0 s" for
     // minutes), so the line says "ETA after the first frequency" until one is done.
     if (plan_.steady &&
-        std::any_of(record_.done.begin(), record_.done.end(), [](char d) { return d != 0; }))
-      progress_->set_work(record_.simulated_s - simulated_start_,
-                          planned_remaining(plan_, *scenes_[0], record_, want_, target_, reached_));
+        std::any_of(record_.done.begin(), record_.done.end(), [](char d) { return d != 0; })) {
+      const PlannedWork left =
+          planned_remaining(plan_, *scenes_[0], record_, want_, target_, reached_);
+      progress_->set_work(record_.simulated_s - simulated_start_, left.expected, left.beyond);
+    }
   }
 
   // Runs fill r's next point (a fill's first from its settled bed) and records it.

@@ -30,9 +30,9 @@ int more_fills(const Ensemble& e, int now, int most, double tolerance) {
 // finished points of the nearest amplitude, the point's amplitude predicted from fill 0's
 // last point (the equivalent-linear model of the predicted start): near resonance, where
 // the amplitude is large, fills need more periods and points more fills, on either side.
-double planned_remaining(const RunPlan& plan, const Scene& scene, const RunRecord& record,
-                         const std::vector<int>& want, const std::vector<long>& target,
-                         const std::vector<long>& reached) {
+PlannedWork planned_remaining(const RunPlan& plan, const Scene& scene, const RunRecord& record,
+                              const std::vector<int>& want, const std::vector<long>& target,
+                              const std::vector<long>& reached) {
   struct Measured {
     double amplitude = 0, periods = 0;
     int fills = 0;
@@ -99,11 +99,14 @@ double planned_remaining(const RunPlan& plan, const Scene& scene, const RunRecor
   };
   std::vector<double> cost(points);  // simulated seconds a fill
   std::vector<int> fills(points);    // fills each point is expected to end with
+  bool beyond = false;
   for (std::size_t s = 0; s < points; ++s) {
+    const double amplitude = seen[s].fills > 0 ? seen[s].amplitude : predicted(s);
     const auto [periods, wanted] =
-        seen[s].fills > 0 ? std::pair<double, double>{seen[s].periods, 0.0} : learned(predicted(s));
+        seen[s].fills > 0 ? std::pair<double, double>{seen[s].periods, 0.0} : learned(amplitude);
     const double f = plan.points[s].frequency > 0 ? plan.points[s].frequency : 1.0;
     cost[s] = periods / f;
+    beyond = beyond || (!record.done[s] && !finished.empty() && amplitude > finished.back().first);
     const double expected = seen[s].fills > 0 ? learned(seen[s].amplitude).second : wanted;
     fills[s] = record.done[s]
                    ? want[s]
@@ -117,7 +120,7 @@ double planned_remaining(const RunPlan& plan, const Scene& scene, const RunRecor
     for (auto r = std::size_t(want[s]); !record.done[s] && r < std::size_t(fills[s]); ++r)
       for (; reach[r] < static_cast<long>(s); ++reach[r])
         remaining += cost[std::size_t(reach[r] + 1)];
-  return remaining;
+  return {remaining, beyond};
 }
 
 }  // namespace pdsim

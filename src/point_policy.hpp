@@ -21,8 +21,15 @@ int more_fills(const Ensemble& e, int now, int most, double tolerance);
 // from `reached` (its last point run, -1: none) up to `target` (the last it is to run), and the
 // fills that the points not yet judged are expected to add beyond `want` (the fills each point
 // wants now). `scene` is fill 0's; the caller keeps the record from changing meanwhile.
-double planned_remaining(const RunPlan& plan, const Scene& scene, const RunRecord& record,
-                         const std::vector<int>& want, const std::vector<long>& target,
-                         const std::vector<long>& reached);
+// `beyond`: a point still planned is predicted above every finished point's amplitude (nearer
+// resonance than any yet): there the model extrapolates, and it takes the highest finished
+// point's periods, which a resonance exceeds.
+struct PlannedWork {
+  double expected = 0;  // s, simulated
+  bool beyond = false;
+};
+PlannedWork planned_remaining(const RunPlan& plan, const Scene& scene, const RunRecord& record,
+                              const std::vector<int>& want, const std::vector<long>& target,
+                              const std::vector<long>& reached);
 
 }  // namespace pdsim

@@ -18,7 +18,7 @@ def read(path):
     lines, wall = [], None
     with open(path, errors="replace") as f:
         for line in f:
-            m = re.search(r"elapsed (\d+) s\s+ETA (\d+) s", line)
+            m = re.search(r"elapsed (\d+) s\s+ETA (\d+) s", line)  # "ETA A s [or more ...]"
             if m:
                 lines.append((float(m.group(1)), float(m.group(2))))
             m = re.search(r"wall time ([0-9.]+) s", line)

@@ -90,6 +90,22 @@ double work_in(const Results& r) {
   return r.energy->work_in.back() - r.energy->work_in.front();
 }
 
+// A hard case's checks and validation rows (`name`: "hard case, ..."): the ledger closed to
+// 0.5 % of the work put in, and the displacement within `bound` (m), the SDOF's from rest with
+// the particles as a rigid mass.
+void check_hard_case(const Results& r, const std::string& name, double bound) {
+  const double imbalance = worst_imbalance(r, work_in(r));
+  CHECK(imbalance <= 5e-3);
+  double peak = 0;
+  for (double x : r.timeseries.displacement) peak = std::max(peak, std::fabs(x));
+  MESSAGE("peak displacement " << peak << " m, bound " << bound << " m");
+  CHECK(peak <= bound);
+  validation_bound(name + ": energy ledger imbalance / work in", "energy conservation", 5e-3,
+                   imbalance, "");
+  validation_bound(name + ": peak displacement", "SDOF from rest, particles as a rigid mass", bound,
+                   peak, "m");
+}
+
 }  // namespace
 
 TEST_CASE(
@@ -220,18 +236,8 @@ TEST_CASE(
     std::string text = kBox + contact();
     text.replace(text.find(hard.from), hard.from.size(), hard.to);
     const Results r = run(kStructure + text + sine("force", 1.0));
-    const double imbalance = worst_imbalance(r, work_in(r));
-    CHECK(imbalance <= 5e-3);
-    const double bound = 2.001 * 1.0 / std::hypot(k - (0.5 + hard.particles) * w * w, c * w);
-    double peak = 0;
-    for (double x : r.timeseries.displacement) peak = std::max(peak, std::fabs(x));
-    MESSAGE("peak displacement " << peak << " m, bound " << bound << " m");
-    CHECK(peak <= bound);
-    const std::string name = std::string("hard case, ") + hard.name;
-    validation_bound(name + ": energy ledger imbalance / work in", "energy conservation", 5e-3,
-                     imbalance, "");
-    validation_bound(name + ": peak displacement", "SDOF from rest, particles as a rigid mass",
-                     bound, peak, "m");
+    check_hard_case(r, std::string("hard case, ") + hard.name,
+                    2.001 * 1.0 / std::hypot(k - (0.5 + hard.particles) * w * w, c * w));
   }
 }
 
@@ -260,16 +266,7 @@ TEST_CASE("energy ledger: Hertz at 100x steel's stiffness, and 1,000 periods, cl
     const Scene scene = build_scene(deck);
     const Results r = simulate(deck, scene);
     MESSAGE("dt " << scene.dt << " s, " << r.meta_numbers.at("simulated_time_s") << " s simulated");
-    const double imbalance = worst_imbalance(r, work_in(r));
-    CHECK(imbalance <= 5e-3);
-    validation_bound(std::string("hard case, ") + hard.name + ": energy ledger imbalance / work in",
-                     "energy conservation", 5e-3, imbalance, "");
-    double peak = 0;
-    for (double x : r.timeseries.displacement) peak = std::max(peak, std::fabs(x));
-    MESSAGE("peak displacement " << peak << " m, bound " << bound << " m");
-    CHECK(peak <= bound);
-    validation_bound(std::string("hard case, ") + hard.name + ": peak displacement",
-                     "SDOF from rest, particles as a rigid mass", bound, peak, "m");
+    check_hard_case(r, std::string("hard case, ") + hard.name, bound);
   }
 }
 
@@ -388,19 +385,8 @@ TEST_CASE("rigid contacts' hard cases: closed and bounded, heavy particles on a 
     std::string text =
         kStructure + kBox + contact("nonsmooth") + hard.more + sine("force", 1.0, hard.duration);
     for (const auto& [from, to] : hard.edits) text.replace(text.find(from), from.size(), to);
-    const Results r = run(text);
-    const double imbalance = worst_imbalance(r, work_in(r));
-    CHECK(imbalance <= 5e-3);
     const double c = 2 * 0.02 * std::sqrt(k * hard.mass);  // damping_ratio of the bare structure
-    const double bound = 2.001 * 1.0 / std::hypot(k - (hard.mass + hard.particles) * w * w, c * w);
-    double peak = 0;
-    for (double x : r.timeseries.displacement) peak = std::max(peak, std::fabs(x));
-    MESSAGE("peak displacement " << peak << " m, bound " << bound << " m");
-    CHECK(peak <= bound);
-    const std::string name = std::string("hard case, rigid contacts, ") + hard.name;
-    validation_bound(name + ": energy ledger imbalance / work in", "energy conservation", 5e-3,
-                     imbalance, "");
-    validation_bound(name + ": peak displacement", "SDOF from rest, particles as a rigid mass",
-                     bound, peak, "m");
+    check_hard_case(run(text), std::string("hard case, rigid contacts, ") + hard.name,
+                    2.001 * 1.0 / std::hypot(k - (hard.mass + hard.particles) * w * w, c * w));
   }
 }
